@@ -1,0 +1,9 @@
+"""jaxarm: a spiking cortical network driving a musculoskeletal arm, in JAX (Dura-Bernal et al. 2015).
+
+Units: SI (m, s, rad, N) for the arm; ms and mV for neurons. Each boundary says which.
+"""
+__version__ = "0.1.0"
+
+from jaxarm.arm import make_arm  # noqa: E402
+
+__all__ = ["make_arm", "__version__"]

@@ -1,0 +1,42 @@
+"""The ``jaxarm`` command line.
+
+Subcommands are registered by dotted path and imported only when used, so ``jaxarm --help`` is instant and one
+subsystem's heavy imports (MuJoCo, sockets) never slow another. Each target is ``main(argv: list[str]) -> int``.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+# name -> (module:function, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("jaxarm.experiments_cli:demo_main",
+             "simulate both arms from the start posture under each muscle group; write a plot and a summary"),
+    "wam-sim": ("jaxarm.robot.cli:wam_sim_main", "run the simulated Barrett WAM behind a UDP receiver"),
+    "export": ("jaxarm.robot.cli:export_main", "stream a joint trajectory to a WAM (simulated or real) over UDP"),
+}
+
+
+def _usage() -> str:
+    width = max(map(len, COMMANDS))
+    lines = ["usage: jaxarm COMMAND [options]", "", "commands:"]
+    lines += [f"  {name:<{width}}  {help_}" for name, (_, help_) in COMMANDS.items()]
+    lines += ["", "Run `jaxarm COMMAND --help` for a command's options."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(_usage())
+        return 0
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        print(f"jaxarm: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    module, func = COMMANDS[name][0].split(":")
+    return int(getattr(importlib.import_module(module), func)(rest) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

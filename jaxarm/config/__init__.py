@@ -1,0 +1,11 @@
+"""Static, hashable, validated configuration (sizes, time steps, which arm).
+
+Traced metaparameters (what evolution may change) are pytrees of arrays and live next to the code that uses them.
+"""
+from jaxarm.config.validate import ConfigError, check_choice, check_interval, check_range
+from jaxarm.config.arm import SimpleArmConfig
+
+__all__ = [
+    "ConfigError", "check_choice", "check_interval", "check_range",
+    "SimpleArmConfig",
+]
