@@ -3,9 +3,9 @@
 Traced metaparameters (what evolution may change) are pytrees of arrays and live next to the code that uses them.
 """
 from jaxarm.config.validate import ConfigError, check_choice, check_interval, check_range
-from jaxarm.config.arm import SimpleArmConfig
+from jaxarm.config.arm import MusculoskeletalArmConfig, SimpleArmConfig
 
 __all__ = [
     "ConfigError", "check_choice", "check_interval", "check_range",
-    "SimpleArmConfig",
+    "MusculoskeletalArmConfig", "SimpleArmConfig",
 ]

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from jaxarm.config.validate import ConfigError, check_choice, check_interval, check_range
 
@@ -44,6 +44,78 @@ class SimpleArmConfig:
         check_interval(self, "proprio_range_m", 0.0, 1.0)
         if len(self.segments_m) != 2 or not all(isinstance(v, (int, float)) and 0 < v <= 2 for v in self.segments_m):
             raise ConfigError(f"SimpleArmConfig.segments_m = {self.segments_m!r}: a pair (upper arm, forearm), each in (0, 2] m")
+
+    @property
+    def q_min_rad(self) -> tuple[float, float]:
+        return (math.radians(self.shoulder_range_deg[0]), math.radians(self.elbow_range_deg[0]))
+
+    @property
+    def q_max_rad(self) -> tuple[float, float]:
+        return (math.radians(self.shoulder_range_deg[1]), math.radians(self.elbow_range_deg[1]))
+
+
+@dataclass(frozen=True)
+class MusculoskeletalArmConfig:
+    """The authors' OpenSim arm (SI units). One step advances ``dt_s`` (default 1 ms, the paper's arm step).
+
+    Attributes:
+        dt_s: arm step, s. The original integrated at 0.1 ms inside 10 ms updates; 1 ms is the paper's figure and
+            is what our linearly-implicit muscle step is tested stable at.
+        substeps: integration substeps per step (dt_s / substeps each).
+        time_scale_s, activation1, activation2: defaults for the Schutte activation ODE where the .osim stores 0
+            (all 22 muscles do; the authors' simulator used unpublished internal defaults). We use OpenSim's
+            Schutte1993Muscle defaults (0.1 s, 7.667, 1.459854): the paper's tau = 100 ms scale, activation time
+            constant ~11 ms at full excitation, deactivation ~68 ms.
+        damping: fibre damping of Schutte's force-velocity relation; None keeps each muscle's stored value (1.0).
+        joint_limit_stiffness_nm_per_rad, joint_limit_damping_nms_per_rad: penalty torque beyond the joint range,
+            (shoulder, elbow). The settings file lists "2500 1000 500 1500" for its joint-limit force subsystem
+            without units or meaning; we read them as stiffness (2500, 1000) N m/rad and damping (500, 1500)
+            N m s/rad. Damping acts only while moving further into the limit and is integrated implicitly.
+        shoulder_range_deg, elbow_range_deg: joint ranges where the limit torque starts, degrees.
+        relax_at_start: reproduce the intent of the authors' ``ScaleMuscleToRelax``: any muscle whose fibre would be
+            stretched beyond its optimal length at the start posture (with a taut tendon) gets a longer tendon slack
+            length, just enough that the fibre sits at optimal length with a slack tendon there. The unexcited arm
+            then carries no muscle force at the start posture and holds it. False keeps the stored parameters (the
+            arm then drifts: TRIlong pulls with hundreds of newtons).
+        start_posture_rad: posture used by the relaxation rule and the default ``init``, rad.
+    """
+
+    dt_s: float = 0.001
+    substeps: int = 1
+    time_scale_s: float = 0.1
+    activation1: float = 7.667
+    activation2: float = 1.459854
+    damping: float | None = None
+    joint_limit_stiffness_nm_per_rad: tuple[float, float] = (2500.0, 1000.0)
+    joint_limit_damping_nms_per_rad: tuple[float, float] = (500.0, 1500.0)
+    shoulder_range_deg: tuple[float, float] = SHOULDER_RANGE_DEG
+    elbow_range_deg: tuple[float, float] = ELBOW_RANGE_DEG
+    relax_at_start: bool = True
+    start_posture_rad: tuple[float, float] = START_POSTURE_RAD
+    segments_m: tuple[float, float] = ARM_SEGMENTS_M
+
+    def __post_init__(self):
+        check_range(self, "dt_s", 1e-5, 0.005)
+        check_range(self, "substeps", 1, 100, integer=True)
+        check_range(self, "time_scale_s", 0.001, 1.0)
+        check_range(self, "activation1", 0.0, 100.0)
+        check_range(self, "activation2", 0.01, 100.0)
+        if self.damping is not None:
+            check_range(self, "damping", 0.01, 10.0)
+        for name in ("joint_limit_stiffness_nm_per_rad", "joint_limit_damping_nms_per_rad"):
+            value = getattr(self, name)
+            if len(value) != 2 or not all(isinstance(v, (int, float)) and 0 <= v <= 1e5 for v in value):
+                raise ConfigError(f"MusculoskeletalArmConfig.{name} = {value!r}: must be a pair (shoulder, elbow), "
+                                  "each in [0, 100000]")
+        check_interval(self, "shoulder_range_deg", -180.0, 180.0)
+        check_interval(self, "elbow_range_deg", -180.0, 180.0)
+        if not isinstance(self.relax_at_start, bool):
+            raise ConfigError(f"MusculoskeletalArmConfig.relax_at_start = {self.relax_at_start!r}: must be True or False")
+        lo, hi = self.q_min_rad, self.q_max_rad
+        q0 = self.start_posture_rad
+        if len(q0) != 2 or not all(lo[i] <= q0[i] <= hi[i] for i in range(2)):
+            raise ConfigError(f"MusculoskeletalArmConfig.start_posture_rad = {q0!r}: must lie within the joint ranges "
+                              f"shoulder [{lo[0]:.4f}, {hi[0]:.4f}] rad, elbow [{lo[1]:.4f}, {hi[1]:.4f}] rad")
 
     @property
     def q_min_rad(self) -> tuple[float, float]:
