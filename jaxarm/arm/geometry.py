@@ -1,0 +1,147 @@
+"""Skeleton and muscle-path geometry of the musculoskeletal arm, from two sources behind one signature.
+
+``geometry(q, qd) -> ArmGeometry``: muscle-tendon lengths (m), moment arms (m), the joint-space mass matrix
+(kg m^2) and the velocity-product torques (N m) at joint angles q (rad) and velocities qd (rad/s).
+
+* :class:`MjxGeometry` asks MJX: forward kinematics, the spatial tendons through the model's path points, the
+  composite-rigid-body mass matrix and the recursive Newton-Euler bias. This is the reference.
+* :class:`FastGeometry` evaluates smooth fits of the same quantities made from the same MJCF by
+  ``python -m jaxarm.arm.fit``: a bivariate polynomial for each muscle-tendon length (moment arms are its exact
+  derivative) and a degree-2 trigonometric polynomial in the elbow angle for the mass matrix, which is exact for
+  any two-hinge chain (the kinetic energy is quadratic in the elbow's rotation matrix), with the velocity-product
+  torques derived from it by Lagrange's equations.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+ASSETS = Path(__file__).parent / "assets"
+MJCF_PATH = ASSETS / "arm.xml"
+FIT_PATH = ASSETS / "fast_fit.npz"
+JOINTS = ("shoulder", "elbow")
+
+
+class ArmGeometry(NamedTuple):
+    mtu_length_m: jnp.ndarray    # (M,)
+    moment_arm_m: jnp.ndarray    # (M, 2), = -dL/dq: positive when tension drives the joint towards +q (flexion)
+    mass_matrix: jnp.ndarray     # (2, 2), kg m^2
+    bias_nm: jnp.ndarray         # (2,), velocity-product (Coriolis/centrifugal) torques, N m
+
+
+def load_mjmodel(path: Path | str = MJCF_PATH):
+    import mujoco
+
+    return mujoco.MjModel.from_xml_path(str(path))
+
+
+def tendon_names(mjmodel) -> tuple[str, ...]:
+    import mujoco
+
+    return tuple(mujoco.mj_id2name(mjmodel, mujoco.mjtObj.mjOBJ_TENDON, i) for i in range(mjmodel.ntendon))
+
+
+def c_geometry(mjmodel, q, qd=(0.0, 0.0)) -> ArmGeometry:
+    """The same quantities from MuJoCo's C library (numpy, float64): used to fit and to test."""
+    import mujoco
+
+    d = mujoco.MjData(mjmodel)
+    d.qpos[:] = q
+    d.qvel[:] = qd
+    mujoco.mj_forward(mjmodel, d)
+    mass = np.zeros((mjmodel.nv, mjmodel.nv))
+    mujoco.mj_fullM(mjmodel, mass, d.qM if hasattr(d, "qM") else d.M)
+    return ArmGeometry(d.ten_length.copy(), -np.asarray(d.ten_J).reshape(mjmodel.ntendon, mjmodel.nv).copy(),
+                       mass, d.qfrc_bias.copy())
+
+
+class MjxGeometry:
+    """Geometry computed by MJX (the reference backend)."""
+
+    def __init__(self, path: Path | str = MJCF_PATH):
+        from mujoco import mjx
+
+        self._mjx = mjx
+        self.mjmodel = load_mjmodel(path)
+        self.model = mjx.put_model(self.mjmodel)
+        self._data0 = mjx.make_data(self.model)
+        self.names = tendon_names(self.mjmodel)
+
+    def __call__(self, q, qd) -> ArmGeometry:
+        mjx, m = self._mjx, self.model
+        d = self._data0.replace(qpos=jnp.asarray(q, jnp.float32), qvel=jnp.asarray(qd, jnp.float32))
+        d = mjx.kinematics(m, d)
+        d = mjx.com_pos(m, d)
+        d = mjx.tendon(m, d)
+        d = mjx.crb(m, d)
+        d = mjx.com_vel(m, d)
+        d = mjx.rne(m, d)
+        ten_j = _ten_jacobian(d, m.nv, len(self.names))
+        return ArmGeometry(_ten_length(d), -ten_j, mjx.full_m(m, d), d.qfrc_bias)
+
+
+def _ten_length(d):
+    return d.ten_length if hasattr(d, "ten_length") else d._impl.ten_length
+
+
+def _ten_jacobian(d, nv, nten):
+    for holder in (d, getattr(d, "_impl", None)):
+        if holder is not None and hasattr(holder, "ten_J"):
+            return jnp.asarray(holder.ten_J).reshape(nten, nv)
+    raise AttributeError("MJX Data has no ten_J")
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Fast path
+
+
+def poly_exponents(degree: int) -> np.ndarray:
+    """(K, 2) exponent pairs of all monomials x^i y^j with i + j <= degree."""
+    return np.array([(i, t - i) for t in range(degree + 1) for i in range(t + 1)], dtype=np.int32)
+
+
+def poly_features(x, exponents):
+    """Monomials of normalised angles x (..., 2) -> (..., K). Works for numpy and jax arrays."""
+    xp = jnp if isinstance(x, jax.Array) else np
+    return xp.prod(x[..., None, :] ** exponents, axis=-1)
+
+
+def trig_features(q2):
+    """Degree-2 trigonometric basis in the elbow angle: (1, cos, sin, cos 2, sin 2)."""
+    xp = jnp if isinstance(q2, jax.Array) else np
+    return xp.stack([xp.ones_like(q2), xp.cos(q2), xp.sin(q2), xp.cos(2 * q2), xp.sin(2 * q2)], axis=-1)
+
+
+class FastGeometry:
+    """Geometry from the committed fits in ``assets/fast_fit.npz`` (see ``python -m jaxarm.arm.fit``)."""
+
+    def __init__(self, path: Path | str = FIT_PATH):
+        fit = np.load(path)
+        self.names = tuple(str(n) for n in fit["names"])
+        self.exponents = jnp.asarray(fit["exponents"])
+        self.length_coef = jnp.asarray(fit["length_coef"], jnp.float32)   # (K, M)
+        self.q_center = jnp.asarray(fit["q_center"], jnp.float32)
+        self.q_halfwidth = jnp.asarray(fit["q_halfwidth"], jnp.float32)
+        self.mass_coef = jnp.asarray(fit["mass_coef"], jnp.float32)       # (5, 3): M11, M12, M22
+
+    def mtu_lengths(self, q):
+        x = (jnp.asarray(q, jnp.float32) - self.q_center) / self.q_halfwidth
+        return poly_features(x, self.exponents) @ self.length_coef
+
+    def mass_matrix(self, q2):
+        m11, m12, m22 = trig_features(q2) @ self.mass_coef
+        return jnp.array([[m11, m12], [m12, m22]])
+
+    def __call__(self, q, qd) -> ArmGeometry:
+        q = jnp.asarray(q, jnp.float32)
+        qd = jnp.asarray(qd, jnp.float32)
+        lengths, dl_dq = jax.jvp(self.mtu_lengths, (q,), (jnp.eye(2, dtype=q.dtype)[0],))
+        _, dl_dq2 = jax.jvp(self.mtu_lengths, (q,), (jnp.eye(2, dtype=q.dtype)[1],))
+        mass, dmass = jax.jvp(self.mass_matrix, (q[1],), (jnp.ones((), q.dtype),))
+        # Lagrange: M qdd + dM/dt qd - 1/2 d(qd^T M qd)/dq = tau, and M depends on the elbow angle only.
+        bias = dmass @ qd * qd[1] - 0.5 * jnp.array([0.0, qd @ dmass @ qd])
+        return ArmGeometry(lengths, -jnp.stack([dl_dq, dl_dq2], axis=-1), mass, bias)

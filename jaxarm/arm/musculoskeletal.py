@@ -1,0 +1,157 @@
+"""The authors' musculoskeletal arm: 2 hinges in the horizontal plane, 22 Schutte-1993 muscles, 4 driven groups.
+
+One step advances ``config.dt_s`` (1 ms by default) of simulated time (SI units throughout):
+
+1. the 4 group excitations are spread over the driven muscles (spec §8; passive muscles get none);
+2. each muscle's activation and fibre length advance at the current muscle-tendon length (:mod:`jaxarm.arm.muscle`);
+3. tendon forces times moment arms give joint torques; beyond the joint ranges a penalty spring-damper adds limit
+   torques (the original's joint-limit force subsystem; MuJoCo's constraint solver stays off);
+4. semi-implicit Euler on the skeleton with the mass matrix and velocity-product torques of the geometry backend,
+   the limit damping taken implicitly.
+
+The geometry backend is MJX (``backend="mjx"``, the reference) or the fitted fast path (``backend="fast"``); the
+muscle, the limits and the integrator are this one module, shared by both.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.arm import muscle as mus
+from jaxarm.arm.base import ArmObs, MuscleObs, hand_position
+from jaxarm.arm.geometry import FastGeometry, MjxGeometry, c_geometry, load_mjmodel
+from jaxarm.config.arm import MusculoskeletalArmConfig
+
+#: Muscles driven by each excitation group (spec §8, MuscleExcitationSetter). Others are passive.
+GROUP_MUSCLES = (
+    ("DELT3", "Infraspinatus", "Latissimus_dorsi_1", "Latissimus_dorsi_2", "Latissimus_dorsi_3", "Teres_minor"),
+    ("PECM1", "PECM2", "PECM3", "DELT1", "Coracobrachialis"),
+    ("TRIlong", "TRIlat", "TRImed"),
+    ("BIClong", "BICshort", "BRA"),
+)
+#: Muscles whose fibre lengths feed the proprioceptive population, in group order (spec §8, muscleLengthBranch).
+PROPRIO_MUSCLES = ("DELT3", "PECM1", "TRIlong", "BIClong")
+
+
+class MusculoskeletalArmState(NamedTuple):
+    q: jnp.ndarray      # (2,) rad
+    qd: jnp.ndarray     # (2,) rad/s
+    muscle: mus.MuscleState
+
+
+class MusculoskeletalArm:
+    """``init / step / observe`` plus the muscle geometry queries ``mtu_lengths`` and ``moment_arms``."""
+
+    kind = "musculoskeletal"
+
+    def __init__(self, backend: str = "fast", config: MusculoskeletalArmConfig | None = None):
+        self.config = config = config or MusculoskeletalArmConfig()
+        self.backend = backend
+        self.dt_s = config.dt_s
+        self.geometry = MjxGeometry() if backend == "mjx" else FastGeometry()
+        table = mus.load_muscle_table()
+        self.muscle_names = tuple(m["name"] for m in table)
+        if tuple(self.geometry.names) != self.muscle_names:
+            raise ValueError("arm assets disagree: tendon order in the geometry differs from muscles.json; "
+                             "regenerate with `python -m jaxarm.arm.convert` and `python -m jaxarm.arm.fit`")
+        params = mus.make_muscle_params(table, time_scale_s=config.time_scale_s, activation1=config.activation1,
+                                        activation2=config.activation2, damping_override=config.damping)
+        # Muscle-tendon lengths at the start posture from MuJoCo's C library: both backends relax the same muscles.
+        lmt0 = c_geometry(load_mjmodel(), np.asarray(config.start_posture_rad)).mtu_length_m
+        self.tendon_slack_stored_m = np.asarray(params.tendon_slack_length_m)
+        if config.relax_at_start:
+            params = params._replace(tendon_slack_length_m=jnp.asarray(
+                relaxed_tendon_slack(params, lmt0), jnp.float32))
+        self.params = params
+
+        index = {n: i for i, n in enumerate(self.muscle_names)}
+        drive = np.zeros((len(table), 4), np.float32)
+        for g, names in enumerate(GROUP_MUSCLES):
+            drive[[index[n] for n in names], g] = 1.0
+        self.group_drive = jnp.asarray(drive)   # (M, 4) excitation of each muscle from the 4 groups
+        self.proprio_index = jnp.asarray([index[n] for n in PROPRIO_MUSCLES])
+        self._q_min = jnp.asarray(config.q_min_rad, jnp.float32)
+        self._q_max = jnp.asarray(config.q_max_rad, jnp.float32)
+        self._k_limit = jnp.asarray(config.joint_limit_stiffness_nm_per_rad, jnp.float32)
+        self._b_limit = jnp.asarray(config.joint_limit_damping_nms_per_rad, jnp.float32)
+
+    # -- geometry queries ------------------------------------------------------------------------------------
+    def mtu_lengths(self, q):
+        """(22,) muscle-tendon lengths, m, at joint angles q (rad)."""
+        return self.geometry(jnp.asarray(q, jnp.float32), jnp.zeros(2, jnp.float32)).mtu_length_m
+
+    def moment_arms(self, q):
+        """(22, 2) moment arms, m (positive = tension flexes that joint)."""
+        return self.geometry(jnp.asarray(q, jnp.float32), jnp.zeros(2, jnp.float32)).moment_arm_m
+
+    # -- dynamics ----------------------------------------------------------------------------------------------
+    def init(self, q0=None) -> MusculoskeletalArmState:
+        """At rest at q0 (rad; default the start posture), unexcited muscles in force equilibrium."""
+        q0 = jnp.asarray(self.config.start_posture_rad if q0 is None else q0, jnp.float32)
+        lmt = self.mtu_lengths(q0)
+        activation = jnp.zeros_like(lmt)
+        lm = mus.equilibrium_fiber_length(self.params, activation, lmt)
+        return MusculoskeletalArmState(q0, jnp.zeros(2, jnp.float32), mus.MuscleState(activation, lm))
+
+    def excitations(self, u):
+        """(22,) muscle excitations from the 4 group excitations u in [0, 1] (values outside are clipped)."""
+        return self.group_drive @ jnp.clip(jnp.asarray(u, jnp.float32), 0.0, 1.0)
+
+    def step(self, state: MusculoskeletalArmState, u) -> MusculoskeletalArmState:
+        """u: (4,) excitations (sh-ext, sh-flex, el-ext, el-flex) in [0, 1]. Advances ``dt_s`` (1 ms default)."""
+        e = self.excitations(u)
+        h = self.config.dt_s / self.config.substeps
+
+        def substep(s, _):
+            return self._substep(s, e, h), None
+
+        state, _ = jax.lax.scan(substep, state, None, length=self.config.substeps)
+        return state
+
+    def joint_limit_torque(self, q, qd):
+        """Penalty torque (N m) beyond the joint range: spring on the overshoot; the damping part is returned
+        separately as a coefficient (N m s/rad) so the integrator can take it implicitly."""
+        below, above = self._q_min - q, q - self._q_max
+        spring = self._k_limit * (jnp.maximum(below, 0.0) - jnp.maximum(above, 0.0))
+        moving_in = ((below > 0) & (qd < 0)) | ((above > 0) & (qd > 0))
+        return spring, jnp.where(moving_in, self._b_limit, 0.0)
+
+    def _substep(self, s: MusculoskeletalArmState, e, h) -> MusculoskeletalArmState:
+        geo = self.geometry(s.q, s.qd)
+        ms = mus.step(self.params, s.muscle, e, geo.mtu_length_m, h)
+        tendon = mus.forces(self.params, ms, geo.mtu_length_m).tendon_force_n
+        spring, damping = self.joint_limit_torque(s.q, s.qd)
+        tau = geo.moment_arm_m.T @ tendon + spring - geo.bias_nm
+        # (M + h B) qd' = M qd + h tau: implicit limit damping B = diag(damping).
+        lhs = geo.mass_matrix + h * jnp.diag(damping)
+        qd = jnp.linalg.solve(lhs, geo.mass_matrix @ s.qd + h * tau)
+        return MusculoskeletalArmState(s.q + h * qd, qd, ms)
+
+    def observe(self, state: MusculoskeletalArmState) -> ArmObs:
+        lmt = self.mtu_lengths(state.q)
+        f = mus.forces(self.params, state.muscle, lmt)
+        lm = state.muscle.fiber_length_m
+        muscles = MuscleObs(activation=state.muscle.activation, active_force_n=f.active_force_n,
+                            passive_force_n=f.passive_force_n, force_n=f.tendon_force_n,
+                            fiber_length_m=lm, mtu_length_m=lmt)
+        return ArmObs(q=state.q, qd=state.qd, hand=hand_position(state.q, self.config.segments_m),
+                      proprio=lm[self.proprio_index], muscles=muscles)
+
+
+def relaxed_tendon_slack(params: mus.MuscleParams, lmt0) -> np.ndarray:
+    """Tendon slack lengths (m) after the start-posture relaxation rule (see ``MusculoskeletalArmConfig``).
+
+    A muscle whose path at the start posture is longer than an optimal-length fibre plus its stored tendon slack
+    length would be stretched there; its slack length grows to ``lmt0 - l_opt cos(alpha0)`` so that the fibre rests
+    at optimal length (zero passive force in the stored curves) with a just-slack tendon. Others are unchanged.
+    """
+    lopt = np.asarray(params.optimal_fiber_length_m, float)
+    resting_span = lopt * np.cos(np.asarray(params.pennation_rad, float))
+    return np.maximum(np.asarray(params.tendon_slack_length_m, float), np.asarray(lmt0, float) - resting_span)
+
+
+def make_musculoskeletal_arm(backend: str = "fast", config: MusculoskeletalArmConfig | None = None):
+    return MusculoskeletalArm(backend, config)
