@@ -10,7 +10,7 @@ import sys
 
 # name -> (module:function, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("jaxarm.experiments_cli:demo_main",
+    "demo": ("jaxarm.demo:main",
              "simulate both arms from the start posture under each muscle group; write a plot and a summary"),
     "wam-sim": ("jaxarm.robot.cli:wam_sim_main", "run the simulated Barrett WAM behind a UDP receiver"),
     "export": ("jaxarm.robot.cli:export_main", "stream a joint trajectory to a WAM (simulated or real) over UDP"),
