@@ -46,8 +46,9 @@ JOINT_RANGES_RAD = {
     "arm_flex": tuple(math.radians(v) for v in SHOULDER_RANGE_DEG),
     "elbow_flex": tuple(math.radians(v) for v in ELBOW_RANGE_DEG),
 }
-#: Grid used to choose the conditional-point replacement (5-degree steps over both ranges).
-SELECTION_GRID_STEP_DEG = 5.0
+#: Grid on which conditional-point replacements are fitted (10-degree steps over both ranges: 13 x 15 postures);
+#: the error is then measured on a finer grid by experiments/arm_geometry_error.py.
+SELECTION_GRID_STEP_DEG = 10.0
 MOTOR_GEAR = -1.0
 
 
@@ -64,9 +65,48 @@ def joint_range_grid(step_deg: float = SELECTION_GRID_STEP_DEG) -> list[dict[str
     return [{"arm_flex": float(s), "elbow_flex": float(e)} for s in axes[0] for e in axes[1]]
 
 
-def _fixed_path_length(poses: dict, points: Iterable[osim.PathPoint]) -> float:
-    pts = np.asarray([poses[p.body][:3, :3] @ np.asarray(p.location) + poses[p.body][:3, 3] for p in points])
-    return float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+class GridPoses:
+    """Body poses over a grid of postures, and at +-h in each coordinate (for moment arms by central differences)."""
+
+    def __init__(self, model: osim.OsimModel, grid: list[dict[str, float]], h: float = 1e-6):
+        self.grid, self.h = grid, h
+        self.coordinates = tuple(c.name for c in model.coordinates)
+        shifted = {"0": grid}
+        for c in self.coordinates:
+            for sign in (+1, -1):
+                shifted[(c, sign)] = [{**g, c: g[c] + sign * h} for g in grid]
+        self.poses = {}
+        for key, gs in shifted.items():
+            ps = [osim.body_transforms(model, g) for g in gs]
+            self.poses[key] = {b: (np.stack([p[b][:3, :3] for p in ps]), np.stack([p[b][:3, 3] for p in ps]))
+                               for b in ps[0]}
+
+    def points(self, key, bodies: list[str], locations: np.ndarray) -> np.ndarray:
+        """(G, N, 3) ground positions of N body-fixed points."""
+        out = [self.poses[key][b][0] @ loc + self.poses[key][b][1] for b, loc in zip(bodies, locations)]
+        return np.stack(out, axis=1)
+
+    @staticmethod
+    def polyline(pts: np.ndarray, mask: Optional[np.ndarray] = None) -> np.ndarray:
+        """(G,) lengths of the polylines through the points (only those with mask[g, i] true, if given)."""
+        if mask is None:
+            return np.linalg.norm(np.diff(pts, axis=1), axis=2).sum(axis=1)
+        return np.array([np.linalg.norm(np.diff(p[m], axis=0), axis=1).sum() for p, m in zip(pts, mask)])
+
+    def length_and_moment_arms(self, bodies, locations, mask=None) -> tuple[np.ndarray, np.ndarray]:
+        """Lengths (G,) and moment arms -dL/dq (G, n_coordinates) with the active set ``mask`` frozen."""
+        L = self.polyline(self.points("0", bodies, locations), mask)
+        ma = [-(self.polyline(self.points((c, 1), bodies, locations), mask)
+                - self.polyline(self.points((c, -1), bodies, locations), mask)) / (2 * self.h)
+              for c in self.coordinates]
+        return L, np.stack(ma, axis=1)
+
+
+def true_path_geometry(muscle: osim.Muscle, gp: GridPoses) -> tuple[np.ndarray, np.ndarray]:
+    """The true OpenSim path on the grid: lengths (G,) and moment arms (G, 2), active set frozen at each posture."""
+    mask = np.array([[p.active(g) for p in muscle.path] for g in gp.grid])
+    locs = np.array([p.location for p in muscle.path])
+    return gp.length_and_moment_arms([p.body for p in muscle.path], locs, mask)
 
 
 @dataclass(frozen=True)
@@ -74,45 +114,97 @@ class PathChoice:
     """The fixed path points used in the MJCF for one muscle, and how they were chosen."""
 
     points: tuple[osim.PathPoint, ...]
-    kept_conditional: tuple[str, ...]     # descriptions of conditional points kept as fixed sites
-    dropped_conditional: tuple[str, ...]  # ... and of those left out
-    length_rms_m: float                   # RMS length error vs the true path on the selection grid
+    notes: tuple[str, ...]   # one line per conditional point: what became of it
+    length_rms_m: float      # RMS length error vs the true path on the selection grid
+    moment_arm_rms_m: float  # RMS moment-arm error (both joints) vs the true path on the selection grid
 
 
 def _describe(p: osim.PathPoint, index: int) -> str:
     lo, hi = (math.degrees(v) for v in p.range)
-    return f"#{index} on {p.body}, {p.coordinate} in [{lo:.1f}, {hi:.1f}] deg"
+    return f"#{index} ({p.body}, active for {p.coordinate} in [{lo:.1f}, {hi:.1f}] deg)"
 
 
-def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, grid: Optional[list] = None) -> PathChoice:
-    """Replace a muscle's conditional points by a fixed subset of them.
+#: Weight of moment-arm residuals (m) relative to length residuals (m) in the replacement fit.
+MOMENT_ARM_WEIGHT = 1.0
+#: A fitted site stays within this distance (m, per axis) of the conditional point it replaces.
+FIT_BOX_M = 0.03
+#: Pull of a fitted site towards the conditional point it replaces: moving a site by 10 mm costs as much as
+#: 0.1 mm more RMS length error over the grid (residual weight = FIT_PRIOR_WEIGHT * sqrt(grid size)).
+FIT_PRIOR_WEIGHT = 0.01
+#: Fitted site coordinates are rounded to this step (m) so regeneration is byte-for-byte stable.
+FIT_ROUND_M = 1e-5
 
-    Every subset of the conditional points is tried (at most 2^4 here) and the one whose fixed polyline has the
-    smallest RMS muscle-tendon length error against the true (switching) OpenSim path over the joint-range grid is
-    kept; ties go to the subset listed first (fewer points). A conditional point inactive over the whole range
-    is thus dropped and one active over the whole range kept, as they should be.
+
+def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPoses] = None) -> PathChoice:
+    """Replace a muscle's ConditionalPathPoints by fixed sites.
+
+    A conditional point active over the whole joint range is kept as an ordinary point and one never active is
+    dropped. For the others ("switching" points, a discrete stand-in for wrapping), every subset of them is
+    tried as fixed sites whose locations (on the same body, within +-FIT_BOX_M of the stored location) are fitted
+    by least squares to the true switching path's muscle-tendon lengths and moment arms over the joint-range grid
+    (residuals: length error, MOMENT_ARM_WEIGHT x moment-arm error, FIT_PRIOR_WEIGHT sqrt(G) x displacement). The subset
+    with the smallest RMS residual wins; the empty subset (drop them all) is one of the candidates.
     """
+    from scipy.optimize import least_squares  # a dependency of jax
+
     cond = [i for i, p in enumerate(muscle.path) if p.conditional]
+    gp = GridPoses(model, joint_range_grid()) if gp is None else gp
     if not cond:
-        return PathChoice(muscle.path, (), (), 0.0)
-    grid = joint_range_grid() if grid is None else grid
-    poses = [osim.body_transforms(model, c) for c in grid]
-    true = np.array([_fixed_path_length(P, [p for p in muscle.path if p.active(c)]) for P, c in zip(poses, grid)])
+        return PathChoice(muscle.path, (), 0.0, 0.0)
+    active = np.array([[muscle.path[i].active(g) for i in cond] for g in gp.grid])
+    always = {i for i, col in zip(cond, active.T) if col.all()}
+    never = {i for i, col in zip(cond, active.T) if not col.any()}
+    switching = [i for i in cond if i not in always | never]
+    L_true, ma_true = true_path_geometry(muscle, gp)
+    prior = FIT_PRIOR_WEIGHT * math.sqrt(len(gp.grid))
+
+    def candidate(kept: tuple[int, ...], locs: np.ndarray):
+        idx = [i for i in range(len(muscle.path)) if i not in cond or i in always or i in kept]
+        locations = np.array([locs[kept.index(i)] if i in kept else muscle.path[i].location for i in idx])
+        return idx, locations
+
+    def residuals(x: np.ndarray, kept: tuple[int, ...]) -> np.ndarray:
+        locs = x.reshape(-1, 3)
+        idx, locations = candidate(kept, locs)
+        L, ma = gp.length_and_moment_arms([muscle.path[i].body for i in idx], locations)
+        x0 = np.array([muscle.path[i].location for i in kept]).ravel() if kept else np.zeros(0)
+        return np.concatenate([L - L_true, MOMENT_ARM_WEIGHT * (ma - ma_true).ravel(), prior * (x - x0)])
+
     best = None
-    for keep in itertools.product((False, True), repeat=len(cond)):
-        kept = {i for i, k in zip(cond, keep) if k}
-        pts = [p for i, p in enumerate(muscle.path) if not p.conditional or i in kept]
-        err = np.array([_fixed_path_length(P, pts) for P in poses]) - true
-        rms = float(np.sqrt(np.mean(err ** 2)))
-        if best is None or rms < best[0] - 1e-12:
-            best = (rms, tuple(pts), kept)
-    rms, pts, kept = best
-    return PathChoice(
-        points=pts,
-        kept_conditional=tuple(_describe(muscle.path[i], i) for i in cond if i in kept),
-        dropped_conditional=tuple(_describe(muscle.path[i], i) for i in cond if i not in kept),
-        length_rms_m=rms,
-    )
+    for r in range(len(switching) + 1):
+        for kept in itertools.combinations(switching, r):
+            x0 = np.array([muscle.path[i].location for i in kept], dtype=float).ravel()
+            if kept:
+                fit = least_squares(residuals, x0, args=(kept,), bounds=(x0 - FIT_BOX_M, x0 + FIT_BOX_M),
+                                    x_scale=0.01, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
+                x = np.round(fit.x / FIT_ROUND_M) * FIT_ROUND_M
+            else:
+                x = x0
+            cost = float(np.sum(residuals(x, kept) ** 2))
+            if best is None or cost < best[0] * (1 - 1e-9):
+                best = (cost, kept, x.reshape(-1, 3))
+    _, kept, locs = best
+    idx, locations = candidate(kept, locs)
+    points = []
+    for i, loc in zip(idx, locations):
+        p = muscle.path[i]
+        points.append(osim.PathPoint(p.name, p.body, tuple(float(v) for v in loc)))
+    notes = []
+    for i in cond:
+        p = muscle.path[i]
+        if i in always:
+            notes.append(f"{_describe(p, i)}: always active in range, kept as is")
+        elif i in never:
+            notes.append(f"{_describe(p, i)}: never active in range, dropped")
+        elif i in kept:
+            shift = np.asarray(locs[kept.index(i)]) - np.asarray(p.location)
+            notes.append(f"{_describe(p, i)}: replaced by a fitted fixed site moved by "
+                         f"({_vec(np.round(shift * 1e3, 2))}) mm")
+        else:
+            notes.append(f"{_describe(p, i)}: dropped (fit)")
+    L, ma = gp.length_and_moment_arms([muscle.path[i].body for i in idx], locations)
+    return PathChoice(tuple(points), tuple(notes), float(np.sqrt(np.mean((L - L_true) ** 2))),
+                      float(np.sqrt(np.mean((ma - ma_true) ** 2))))
 
 
 # ----------------------------------------------------------------------------------------------- MJCF writing
@@ -226,9 +318,11 @@ def build_mjcf(model: osim.OsimModel, paths: dict[str, PathChoice], source_sha25
     lines.append("  <tendon>")
     for mus in model.muscles:
         ch = paths[mus.name]
-        if ch.kept_conditional or ch.dropped_conditional:
-            lines.append(f"    <!-- {mus.name}: conditional points kept: {'; '.join(ch.kept_conditional) or 'none'};"
-                         f" dropped: {'; '.join(ch.dropped_conditional) or 'none'} -->")
+        if ch.notes:
+            lines.append(f"    <!-- {mus.name}: conditional path points (osim path index):")
+            lines += [f"         {n}" for n in ch.notes]
+            lines.append(f"         fixed path vs true path over the joint ranges: length RMS "
+                         f"{ch.length_rms_m * 1e3:.2f} mm, moment-arm RMS {ch.moment_arm_rms_m * 1e3:.2f} mm -->")
         lines.append(f'    <spatial name="{mus.name}" width="0.001">')
         for k in range(len(ch.points)):
             lines.append(f'      <site site="{_site_name(mus.name, k)}"/>')
@@ -290,8 +384,8 @@ def convert(osim_path: Optional[str | Path] = None) -> tuple[str, str]:
     path = Path(osim_path) if osim_path is not None else osim.default_osim_path()
     sha = hashlib.sha256(path.read_bytes()).hexdigest()
     model = osim.parse_osim(path)
-    grid = joint_range_grid()
-    paths = {m.name: resolve_path(model, m, grid) for m in model.muscles}
+    gp = GridPoses(model, joint_range_grid())
+    paths = {m.name: resolve_path(model, m, gp) for m in model.muscles}
     xml = build_mjcf(model, paths, sha)
     table = json.dumps(build_muscle_table(model, sha), indent=1) + "\n"
     return xml, table
