@@ -186,7 +186,8 @@ def from_unit(u) -> MetaParams:
 
 def clip_to_bounds(mp: MetaParams) -> MetaParams:
     """Each field clipped to its :data:`BOUNDS` range."""
-    return MetaParams(**{n: jnp.clip(getattr(mp, n), BOUNDS[n].lo, BOUNDS[n].hi) for n in NAMES})
+    return MetaParams(**{n: jnp.clip(jnp.asarray(getattr(mp, n), jnp.float32), BOUNDS[n].lo, BOUNDS[n].hi)
+                         for n in NAMES})
 
 
 def stack(sets) -> MetaParams:

@@ -1,0 +1,180 @@
+"""Dimensionless jerk on trajectories with closed-form answers; reach metrics on synthetic paths; statistics."""
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxarm.analysis import (dimensionless_jerk, jerk, jerk_magnitude, mean_sd, path_length, reach_metrics,
+                             summarize_reaches, velocity)
+
+
+def straight_reach(profile, n, duration=1.0, amplitude=0.15, angle=0.7, origin=(0.1, 0.3)):
+    """A straight reach x(t) = origin + amplitude * profile(t/D) * (cos a, sin a), sampled at n points."""
+    t = np.linspace(0.0, duration, n)
+    s = amplitude * profile(t / duration)
+    xy = np.stack([origin[0] + s * np.cos(angle), origin[1] + s * np.sin(angle)], axis=-1)
+    return xy, duration / (n - 1)
+
+
+MIN_JERK = lambda u: 10 * u ** 3 - 15 * u ** 4 + 6 * u ** 5   # noqa: E731
+CUBIC = lambda u: 3 * u ** 2 - 2 * u ** 3                     # noqa: E731
+
+
+@pytest.mark.parametrize("duration, amplitude, angle, n", [(1.0, 0.15, 0.7, 101), (0.37, 2.0, -2.0, 23),
+                                                           (5.0, 0.01, 3.0, 7)])
+def test_cubic_reach_scores_exactly_144(duration, amplitude, angle, n):
+    # x = A(3τ² - 2τ³): jerk = -12A/D³ everywhere, ∫jerk² = 144 A²/D⁵, v_mean = A/D -> DLJ = 144 for any A, D, dt.
+    # The 5-point stencils are exact for quartics and the trapezoid rule for constants, so this is exact.
+    with jax.enable_x64(True):
+        xy, dt = straight_reach(CUBIC, n, duration, amplitude, angle)
+        assert float(dimensionless_jerk(xy, dt)) == pytest.approx(144.0, rel=1e-9)
+        np.testing.assert_allclose(np.asarray(jerk_magnitude(xy, dt)), 12 * amplitude / duration ** 3, rtol=1e-7)
+
+
+def test_stencils_are_exact_for_quartics():
+    with jax.enable_x64(True):
+        t = np.linspace(0.0, 0.8, 9)
+        dt = t[1] - t[0]
+        x = 0.3 * t ** 4 - 0.7 * t ** 3 + 0.2 * t ** 2 - t + 0.05
+        y = -0.1 * t ** 4 + 0.5 * t ** 3
+        xy = np.stack([x, y], axis=-1)
+        j = np.asarray(jerk(xy, dt))
+        np.testing.assert_allclose(j[:, 0], 7.2 * t - 4.2, atol=1e-8)
+        np.testing.assert_allclose(j[:, 1], -2.4 * t + 3.0, atol=1e-8)
+        v = np.asarray(velocity(xy, dt))
+        np.testing.assert_allclose(v[:, 0], 1.2 * t ** 3 - 2.1 * t ** 2 + 0.4 * t - 1, atol=1e-8)
+
+
+def test_minimum_jerk_reach_scores_720_with_second_order_convergence():
+    # x = A(10τ³ - 15τ⁴ + 6τ⁵): ∫jerk² dt = 720 A²/D⁵ and v_mean = A/D -> DLJ = 720 exactly in the continuum.
+    with jax.enable_x64(True):
+        errors = []
+        for n in (201, 401, 801):
+            xy, dt = straight_reach(MIN_JERK, n)
+            errors.append(float(dimensionless_jerk(xy, dt)) - 720.0)
+        assert 0 < errors[-1] < 0.02                         # 720.011 at 801 samples; 720.47 at 101
+        # halving dt divides the error by ~4 (3.61, 3.81, -> 4): second-order accurate
+        assert 3.4 < errors[0] / errors[1] < 4.2 and 3.4 < errors[1] / errors[2] < 4.2
+        # Hogan & Sternad's peak-speed variant: v_peak = 1.875 A/D -> 720 / 1.875² = 204.8
+        xy, dt = straight_reach(MIN_JERK, 401)
+        assert float(dimensionless_jerk(xy, dt, normalise="peak")) == pytest.approx(204.8, rel=1e-3)
+
+
+def test_float32_at_the_loop_sampling_rate_is_accurate_enough():
+    # 1 s reach sampled every 10 ms (the closed loop's rate), default float32 JAX.
+    xy, dt = straight_reach(MIN_JERK, 101)
+    value = float(dimensionless_jerk(jnp.asarray(xy, jnp.float32), dt))
+    assert value == pytest.approx(720.0, rel=5e-3)
+
+
+def test_circular_motion_scores_theta_to_the_fourth():
+    # |jerk| = R ω³ constant, v = R ω -> DLJ = ω⁴ D⁴ = θ⁴ (θ = swept angle), independent of R.
+    with jax.enable_x64(True):
+        theta, n = 2.0, 801
+        t = np.linspace(0.0, 1.0, n)
+        xy = 0.07 * np.stack([np.cos(theta * t), np.sin(theta * t)], axis=-1) + 0.2
+        assert float(dimensionless_jerk(xy, t[1] - t[0])) == pytest.approx(theta ** 4, rel=1e-5)
+
+
+def test_constant_velocity_path_has_zero_jerk_and_a_still_hand_is_undefined():
+    with jax.enable_x64(True):
+        xy, dt = straight_reach(lambda u: u, 50)
+        assert np.max(np.asarray(jerk_magnitude(xy, dt))) < 1e-8
+        assert abs(float(dimensionless_jerk(xy, dt))) < 1e-9
+        assert float(path_length(xy)) == pytest.approx(0.15, rel=1e-12)
+    assert math.isnan(float(dimensionless_jerk(np.ones((20, 2)), 0.01)))
+
+
+def test_invariances_and_batching():
+    with jax.enable_x64(True):
+        rng = np.random.default_rng(0)
+        xy = np.cumsum(rng.normal(size=(60, 2)), axis=0) * 1e-3     # an irregular path
+        base = float(dimensionless_jerk(xy, 0.01))
+        rot = np.array([[np.cos(1.0), -np.sin(1.0)], [np.sin(1.0), np.cos(1.0)]])
+        for other, dt in ((xy * 7.0 + 3.0, 0.01), (xy, 0.5), (xy[::-1], 0.01), (xy @ rot.T, 0.01)):
+            assert float(dimensionless_jerk(other, dt)) == pytest.approx(base, rel=1e-9)
+        batch = np.stack([xy, straight_reach(CUBIC, 60)[0]])
+        out = jax.jit(jax.vmap(dimensionless_jerk, in_axes=(0, None)))(batch, 0.01)
+        assert float(out[0]) == pytest.approx(base, rel=1e-9) and float(out[1]) == pytest.approx(144.0, rel=1e-9)
+    with pytest.raises(ValueError, match="at least 5"):
+        dimensionless_jerk(np.zeros((4, 2)), 0.01)
+    with pytest.raises(ValueError, match="normalise"):
+        dimensionless_jerk(xy, 0.01, normalise="median")
+
+
+# ---- reach metrics --------------------------------------------------------------------------------------------
+
+DT = 0.01
+TARGET = np.array([0.15, 0.0])
+
+
+def synthetic_reach():
+    """Still for 0.1 s, then 0.6 m/s straight at the target (entering the 4 cm circle at sample 29, 3.6 cm away),
+    then 0.1 m/s onward through the centre (sample 65) to 3.5 cm beyond it at sample 100."""
+    x = np.zeros(101)
+    for k in range(101):
+        if k <= 10:
+            x[k] = 0.0
+        elif k <= 29:
+            x[k] = 0.006 * (k - 10)
+        else:
+            x[k] = 0.114 + 0.001 * (k - 29)
+    return np.stack([x, np.zeros_like(x)], axis=-1)
+
+
+def test_reach_metrics_on_a_path_with_known_answers():
+    m = reach_metrics(synthetic_reach(), TARGET, DT)
+    assert bool(m.success)
+    assert float(m.onset_s) == pytest.approx(0.10, abs=1e-6)
+    assert float(m.first_entry_s) == pytest.approx(0.29, abs=1e-6)
+    assert float(m.speed_before_m_s) == pytest.approx(0.6, rel=1e-4)
+    assert float(m.speed_after_m_s) == pytest.approx(0.1, rel=1e-4)
+    assert float(m.min_distance_m) == pytest.approx(0.0, abs=1e-6)
+    assert float(m.final_distance_m) == pytest.approx(0.035, abs=1e-6)
+    assert float(m.time_inside_s) == pytest.approx(0.72, abs=1e-6)           # samples 29..100
+    expected_after = np.mean(np.abs(0.114 + 0.001 * np.arange(72) - 0.15))   # samples 29..100
+    assert float(m.distance_after_m) == pytest.approx(expected_after, rel=1e-4)
+
+
+def test_reach_metrics_of_a_miss_and_of_a_pass_through():
+    miss = synthetic_reach() * 0.5                       # stops at 9.25 cm from the target
+    m = reach_metrics(miss, TARGET, DT)
+    assert not bool(m.success) and float(m.time_inside_s) == 0.0
+    for name in ("first_entry_s", "speed_before_m_s", "speed_after_m_s", "distance_after_m"):
+        assert math.isnan(float(getattr(m, name))), name
+    assert float(m.min_distance_m) == pytest.approx(0.15 - 0.5 * 0.185, abs=1e-6)
+    # crossing the circle through its centre at 1 cm per sample, x = 0.005 ... 0.295 m: inside for
+    # |x - 0.15| <= 0.04, i.e. x = 0.115 ... 0.185 -> 8 samples
+    x = 0.005 + 0.01 * np.arange(30)
+    m = reach_metrics(np.stack([x, np.zeros_like(x)], axis=-1), TARGET, DT)
+    assert bool(m.success) and float(m.time_inside_s) == pytest.approx(0.08, abs=1e-6)
+    assert float(m.final_distance_m) == pytest.approx(0.145, abs=1e-6)
+
+
+def test_slow_drift_below_the_onset_threshold_is_not_movement():
+    xy = synthetic_reach()
+    xy[:11, 1] = 1e-4 * np.arange(11)                     # 1 cm/s drift before the reach (< 2 cm/s threshold)
+    m = reach_metrics(xy, TARGET, DT)
+    assert float(m.onset_s) == pytest.approx(0.10, abs=1e-6)
+    assert float(reach_metrics(xy, TARGET, DT, onset_speed_m_s=0.005).onset_s) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_reach_metrics_vmap_and_summary_over_networks():
+    paths = np.stack([synthetic_reach(), synthetic_reach() * 0.5, synthetic_reach()])
+    batch = jax.jit(jax.vmap(reach_metrics, in_axes=(0, None, None)))(paths, TARGET, DT)
+    assert batch.success.shape == (3,)
+    s = summarize_reaches(batch, extra={"dimensionless_jerk": np.array([1.0, 50.0, 3.0])})
+    assert s["n"] == 3 and s["success_count"] == 2 and s["success_rate"] == pytest.approx(2 / 3)
+    assert s["speed_before_m_s"]["n"] == 2 and s["speed_before_m_s"]["mean"] == pytest.approx(0.6, rel=1e-4)
+    assert s["speed_before_m_s"]["sd"] == pytest.approx(0.0, abs=1e-4)
+    assert s["dimensionless_jerk"] == {"mean": 2.0, "sd": pytest.approx(math.sqrt(2.0)), "n": 2}
+    assert s["min_distance_m"]["n"] == 3                  # min / final distance over all networks
+
+
+def test_mean_sd_ignores_nan_and_masked_entries():
+    assert mean_sd([1.0, 3.0, float("nan")]) == {"mean": 2.0, "sd": pytest.approx(math.sqrt(2.0)), "n": 2}
+    assert mean_sd([1.0, 3.0, 5.0], mask=[True, False, True])["mean"] == 3.0
+    empty = mean_sd([], None)
+    assert math.isnan(empty["mean"]) and empty["n"] == 0
