@@ -54,9 +54,13 @@ def c_geometry(mjmodel, q, qd=(0.0, 0.0)) -> ArmGeometry:
     d.qvel[:] = qd
     mujoco.mj_forward(mjmodel, d)
     mass = np.zeros((mjmodel.nv, mjmodel.nv))
-    mujoco.mj_fullM(mjmodel, mass, d.qM if hasattr(d, "qM") else d.M)
-    return ArmGeometry(d.ten_length.copy(), -np.asarray(d.ten_J).reshape(mjmodel.ntendon, mjmodel.nv).copy(),
-                       mass, d.qfrc_bias.copy())
+    mujoco.mj_fullM(mjmodel, d, mass)  # MuJoCo >= 4 signature (m, d, dst)
+    ten_j = np.zeros((mjmodel.ntendon, mjmodel.nv))
+    if np.asarray(d.ten_J).size == ten_j.size:
+        ten_j[:] = np.asarray(d.ten_J).reshape(ten_j.shape)
+    else:  # sparse rows (MuJoCo 4 keeps the pattern on the model)
+        mujoco.mju_sparse2dense(ten_j, d.ten_J, mjmodel.ten_J_rownnz, mjmodel.ten_J_rowadr, mjmodel.ten_J_colind)
+    return ArmGeometry(d.ten_length.copy(), -ten_j, mass, d.qfrc_bias.copy())
 
 
 class MjxGeometry:
@@ -89,10 +93,9 @@ def _ten_length(d):
 
 
 def _ten_jacobian(d, nv, nten):
-    for holder in (d, getattr(d, "_impl", None)):
-        if holder is not None and hasattr(holder, "ten_J"):
-            return jnp.asarray(holder.ten_J).reshape(nten, nv)
-    raise AttributeError("MJX Data has no ten_J")
+    # MuJoCo 4 keeps ten_J on the backend-specific part of Data (direct access is deprecated).
+    holder = getattr(d, "_impl", d)
+    return jnp.asarray(holder.ten_J).reshape(nten, nv)
 
 
 # ----------------------------------------------------------------------------------------------------------------

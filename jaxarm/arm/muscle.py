@@ -187,7 +187,9 @@ def _normalised_forces(p: MuscleParams, lm, lmt):
     lt = lmt - lm * ca
     strain = (lt - p.tendon_slack_length_m) / p.tendon_slack_length_m
     ft = jnp.where(strain >= 0.0, jnp.maximum(eval_spline(p.tendon_fl, jnp.maximum(strain, 0.0)), 0.0), 0.0)
-    fp = eval_spline(p.passive_fl, ln)
+    # The natural spline through the stored knots dips ~1e-6 below zero where the curve is flat at zero; a negative
+    # passive force would hold a slack fibre stretched, so it is clipped.
+    fp = jnp.maximum(eval_spline(p.passive_fl, ln), 0.0)
     fa = jnp.maximum(eval_spline(p.active_fl, ln), 0.0)
     return ca, ft, fp, fa
 
