@@ -30,6 +30,15 @@ import numpy as np
 
 from jaxarm.robot.config import WamSimConfig, joint_limits
 from jaxarm.robot.protocol import SEQ_MODULUS, DecodeError, decode
+from jaxarm.robot.wam_model import JOINT_RANGE_RAD
+
+#: Joint-limit guard (not libbarrett; stands in for the WAM's mechanical stops and safety module): the range it keeps
+#: each joint inside is the joint range shrunk by this margin, rad ...
+GUARD_MARGIN_RAD = 0.01
+#: ... and it counts on this fraction of the control torque limit's deceleration (the rest covers the reaction and
+#: centrifugal torques of the other joints: up to ~10 N m on J1 while J4 brakes). The model's joint stops
+#: (wam_model.STOP_INSET_RAD) catch what is left.
+BRAKE_FRACTION = 0.4
 
 BAD_KINDS = ("malformed", "truncated", "nonfinite", "stale", "duplicate", "out_of_order")
 
@@ -148,9 +157,16 @@ class ControlParams(NamedTuple):
     jv_lp_wt: np.ndarray        # omega_p * T of the torque low-pass
     vf_wt: np.ndarray           # omega_p * T of the velocity filter
     rate_step: float            # rate limit * T (0 = off)
+    guard_lo: np.ndarray        # (4,) joint-limit guard: lower / upper range it never lets the joint pass, rad
+    guard_hi: np.ndarray
+    brake_accel: np.ndarray     # (4,) deceleration the guard counts on, rad/s^2
+    brake_torque: np.ndarray    # (4,) torque it brakes with, N m
 
 
-def control_params(config: WamSimConfig) -> ControlParams:
+def control_params(config: WamSimConfig, max_inertia_kgm2=None) -> ControlParams:
+    """Per-joint arrays for :func:`control_step`. ``max_inertia_kgm2`` (4,) is the largest diagonal of the joint
+    mass matrix (armature included) over the reachable poses; the simulator passes its model's, and without it the
+    joint-limit guard assumes 2 kg m^2 (more than any WAM joint but J1 of the 7-DOF arm)."""
     c = config.controller
     t = c.control_period_s
     arr = lambda v: np.asarray(v, dtype=float)  # noqa: E731
@@ -164,7 +180,12 @@ def control_params(config: WamSimConfig) -> ControlParams:
         jp_kp=arr(c.jp_kp), jp_ki_t=arr(c.jp_ki) * t, jp_kd_over_t=arr(c.jp_kd) / t, jp_limit=arr(c.jp_limit_nm),
         jv_kp=arr(c.jv_kp), jv_ki_t=arr(c.jv_ki) * t, jv_kd_over_t=arr(c.jv_kd) / t, jv_limit=arr(c.jv_limit_nm),
         jv_lp_wt=arr(c.jv_torque_lowpass_rad_s) * t, vf_wt=arr(c.velocity_filter_rad_s) * t,
-        rate_step=c.rate_limit_rad_s * t)
+        rate_step=c.rate_limit_rad_s * t,
+        guard_lo=np.asarray(JOINT_RANGE_RAD, float)[:, 0] + GUARD_MARGIN_RAD,
+        guard_hi=np.asarray(JOINT_RANGE_RAD, float)[:, 1] - GUARD_MARGIN_RAD,
+        brake_accel=BRAKE_FRACTION * arr(c.jp_limit_nm) / (arr(max_inertia_kgm2) if max_inertia_kgm2 is not None
+                                                            else np.full(4, 2.0)),
+        brake_torque=arr(c.jp_limit_nm))
 
 
 def control_init(q0: np.ndarray) -> ControlState:
@@ -197,6 +218,17 @@ def control_step(p: ControlParams, s: ControlState, q: np.ndarray,
         ref = s.ref + np.clip(target - s.ref, -p.rate_step, p.rate_step)
     e_p = ref - q
     u_p, jp_int = pid(s.jp_int, s.jp_e_prev, e_p, p.jp_kp, p.jp_ki_t, p.jp_kd_over_t, p.jp_limit)
+    new_state, tau = _chain(p, s, q, target, v_filt, ref, e_p, u_p, jp_int)
+    # Joint-limit guard: brake at full control torque once the stopping distance (plus two ticks of travel)
+    # reaches the distance to the range limit, so no target or jump can drive a joint out of its range.
+    v = (q - s.q_prev) / p.period_s
+    stop = v * v / (2.0 * p.brake_accel) + np.abs(v) * 2.0 * p.period_s
+    tau = np.where((v > 0) & (p.guard_hi - q <= stop), -p.brake_torque,
+                   np.where((v < 0) & (q - p.guard_lo <= stop), p.brake_torque, tau))
+    return new_state, tau
+
+
+def _chain(p, s, q, target, v_filt, ref, e_p, u_p, jp_int):
     if p.velocity_chain:
         # PosToVel: the paper's custom system, v = K (q_target - q), clipped (wam.md §6).
         v_ref = np.clip(p.gain_k * (target - q), -p.v_max, p.v_max)
@@ -207,7 +239,5 @@ def control_step(p: ControlParams, s: ControlState, q: np.ndarray,
         jp_mask = ~p.chain_mask
         new = ControlState(q.copy(), v_filt, jv_int, e_v, tau_lp,
                            np.where(jp_mask, jp_int, 0.0), np.where(jp_mask, e_p, 0.0), ref)
-    else:
-        tau = u_p
-        new = s._replace(q_prev=q.copy(), v_filt=v_filt, jp_int=jp_int, jp_e_prev=e_p, ref=ref)
-    return new, tau
+        return new, tau
+    return s._replace(q_prev=q.copy(), v_filt=v_filt, jp_int=jp_int, jp_e_prev=e_p, ref=ref), u_p

@@ -9,14 +9,14 @@ Definitions (each fixed here, because the paper's numbers depend on them; wam.md
 * **Error / displacement**: mean absolute error divided by the total angular displacement of the target (the
   virtual arm as received), ``sum |diff(target)|``; both in the same unit. (``error_over_displacement(...,
   reference="robot")`` divides by the robot's displacement instead.)
-* **Delay**: the lag in [0, ``max_lag_s``] that maximises the cross-correlation ``sum a[n] b[n + L] / (N - L)``
-  of the mean-removed target ``a`` and robot ``b`` (positive: robot behind). Whole signal, and per window
+* **Delay**: the lag L in [0, ``max_lag_s``] that maximises the cross-correlation (as a correlation coefficient
+  of the overlapping parts ``a[n]`` and ``b[n + L]``) of target ``a`` and robot ``b`` (positive: robot behind). Whole signal, and per window
   (``window_s`` long, hop ``window_s / 2``; mean and SD over windows, as the paper reports 312 ms, SD 127.64 ms).
 * **Hand XY**: the authors' planar forward kinematics with their segment lengths (0.2904, 0.2535) m applied to
   both the target and the robot angles, so both are compared in one space.
-* **Jerk**: third divided differences on each signal's own sample times (velocity = diff(x)/diff(t), then the same
-  on the midpoint times, three times), giving N - 3 values; this reproduces the paper's Fig. 10 counts (24997 robot
-  samples of 25000; 3297 virtual samples of 3300). The virtual signal is sampled at the ticks where a new packet
+* **Jerk**: ``6 x`` times the third divided difference on each signal's own sample times (``diff(x, 3) / dt^3``
+  for uniform samples), giving N - 3 values; this reproduces the paper's Fig. 10 counts (24997 robot samples of
+  25000; 3297 virtual samples of 3300). The virtual signal is sampled at the ticks where a new packet
   was taken (robot clock); no smoothing filter.
 * **Dimensionless jerk** (Hogan & Sternad 2009, as the paper): ``(integral |jerk|^2 dt) * D^3 / v_mean^2``,
   D the duration and v_mean the path length over D.
@@ -76,32 +76,53 @@ def error_over_displacement(target, robot, reference: str = "target") -> dict:
     target, robot = np.asarray(target, float), np.asarray(robot, float)
     err = np.abs(target - robot).mean(axis=0)
     disp = total_displacement(target if reference == "target" else robot)
-    return dict(zip(JOINTS, (err / disp).tolist()))
+    with np.errstate(divide="ignore"):
+        return dict(zip(JOINTS, (err / disp).tolist()))
+
+
+def _pearson_by_lag(a: np.ndarray, b: np.ndarray, max_lag: int) -> np.ndarray:
+    """Correlation coefficient of ``a[:n - L]`` with ``b[L:]`` for L = 0..max_lag (FFT for the cross sums)."""
+    a = a - a.mean()
+    b = b - b.mean()
+    n = len(a)
+    size = 1 << int(math.ceil(math.log2(2 * n)))
+    lags = np.arange(max_lag + 1)
+    sab = np.fft.irfft(np.conj(np.fft.rfft(a, size)) * np.fft.rfft(b, size), size)[:max_lag + 1]
+    m = n - lags
+    ca, ca2 = np.concatenate([[0], np.cumsum(a)]), np.concatenate([[0], np.cumsum(a * a)])
+    cb, cb2 = np.concatenate([[0], np.cumsum(b)]), np.concatenate([[0], np.cumsum(b * b)])
+    sa, sa2 = ca[n - lags], ca2[n - lags]                 # sums over a[0 : n - L]
+    sb, sb2 = cb[n] - cb[lags], cb2[n] - cb2[lags]        # sums over b[L : n]
+    cov = sab - sa * sb / m
+    var = np.maximum(sa2 - sa * sa / m, 0.0) * np.maximum(sb2 - sb * sb / m, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(var > 0, cov / np.sqrt(var), -np.inf)
 
 
 def xcorr_delay(a, b, dt_s: float, max_lag_s: float = 1.0) -> float:
-    """Lag (s, >= 0) of ``b`` behind ``a`` maximising their mean-removed, overlap-normalised cross-correlation."""
-    a = np.asarray(a, float) - np.mean(a)
-    b = np.asarray(b, float) - np.mean(b)
-    n = len(a)
-    max_lag = min(int(round(max_lag_s / dt_s)), n - 2)
-    size = 1 << int(math.ceil(math.log2(2 * n)))
-    c = np.fft.irfft(np.conj(np.fft.rfft(a, size)) * np.fft.rfft(b, size), size)[:max_lag + 1]
-    c = c / (n - np.arange(max_lag + 1))
-    return float(np.argmax(c) * dt_s)
+    """Lag (s, >= 0) of ``b`` behind ``a`` that maximises the correlation coefficient of the overlapping parts
+    (``a[:n - L]`` with ``b[L:]``); exact for a pure shift."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    max_lag = min(int(round(max_lag_s / dt_s)), len(a) - 3)
+    return float(np.argmax(_pearson_by_lag(a, b, max_lag)) * dt_s)
 
 
 def windowed_delay(a, b, dt_s: float, window_s: float = 5.0, max_lag_s: float = 1.0) -> dict:
-    """:func:`xcorr_delay` over windows of ``window_s`` with hop ``window_s / 2``; mean and SD over windows (s).
-    The window is extended by ``max_lag_s`` for ``b`` so that every lag sees a full window."""
+    """Delay per window of ``window_s`` (hop ``window_s / 2``): the lag maximising the correlation coefficient of
+    the window of ``a`` with the window of ``b`` shifted by the lag; mean and SD over windows (s)."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
     w = int(round(window_s / dt_s))
     extra = int(round(max_lag_s / dt_s))
     a, b = np.asarray(a, float), np.asarray(b, float)
     lags = []
     for start in range(0, len(a) - w - extra + 1, max(w // 2, 1)):
         aw = a[start:start + w] - a[start:start + w].mean()
-        bw = b[start:start + w + extra] - b[start:start + w + extra].mean()
-        c = np.array([np.dot(aw, bw[lag:lag + w]) for lag in range(extra + 1)])
+        bws = sliding_window_view(b[start:start + w + extra], w)          # (extra + 1, w): b shifted by each lag
+        bws = bws - bws.mean(axis=1, keepdims=True)
+        den = np.sqrt((aw @ aw) * np.einsum("ij,ij->i", bws, bws))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = np.where(den > 0, bws @ aw / den, -np.inf)
         lags.append(np.argmax(c) * dt_s)
     lags = np.asarray(lags)
     return {"n_windows": int(lags.size), "mean_s": float(lags.mean()) if lags.size else math.nan,
@@ -117,14 +138,16 @@ def hand_xy(q, segments_m=ARM_SEGMENTS_M) -> np.ndarray:
 
 
 def jerk(t, x) -> tuple[np.ndarray, np.ndarray]:
-    """Third divided differences of ``x`` (T, ...) on sample times ``t`` (T,): returns (times (T-3,), jerk)."""
+    """Jerk by third divided differences: ``6 x[t_i, .., t_i+3]`` at the mean of those four times. Exact for cubics
+    on any sampling; ``diff(x, 3) / dt^3`` on uniform samples. Returns (times (T-3,), jerk (T-3, ...))."""
     t = np.asarray(t, float)
     x = np.asarray(x, float)
-    for _ in range(3):
-        dt = np.diff(t).reshape((-1,) + (1,) * (x.ndim - 1))
-        x = np.diff(x, axis=0) / dt
-        t = 0.5 * (t[1:] + t[:-1])
-    return t, x
+    shape = (-1,) + (1,) * (x.ndim - 1)
+    d = x
+    for k in range(1, 4):
+        d = np.diff(d, axis=0) / (t[k:] - t[:-k]).reshape(shape)
+    tj = (t[:-3] + t[1:-2] + t[2:-1] + t[3:]) / 4.0
+    return tj, 6.0 * d
 
 
 def dimensionless_jerk(t, xy) -> float:

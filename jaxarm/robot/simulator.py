@@ -29,7 +29,7 @@ import numpy as np
 from jaxarm.robot.config import WamSimConfig
 from jaxarm.robot.controller import (Counters, control_init, control_params, control_step, receive,
                                      receiver_init)
-from jaxarm.robot.wam_model import JOINT_RANGE_RAD, load_model
+from jaxarm.robot.wam_model import JOINT_RANGE_RAD, mjcf_for
 
 #: Columns of the 500 Hz log, in order. Angles in rad, time in s, torque in N m.
 #: target_* / robot_* are in the virtual arm's convention (joint map undone); q* and tau* are the WAM's J1..J4.
@@ -91,10 +91,9 @@ class WamSimulator:
         self.config = config or WamSimConfig()
         ph = self.config.physics
         self.period_s = self.config.controller.control_period_s
-        self.model = load_model(variant=ph.variant, torque_limits_nm=ph.torque_limit_nm, damping=ph.damping,
-                                frictionloss=ph.frictionloss, timestep_s=self.period_s / ph.substeps)
+        self.model = mujoco.MjModel.from_xml_string(mjcf_for(ph, self.period_s))
         self.data = mujoco.MjData(self.model)
-        self.params = control_params(self.config)
+        self.params = control_params(self.config, max_joint_inertia(self.model, self.config))
         self.reset()
 
     def reset(self) -> None:
@@ -134,6 +133,24 @@ class WamSimulator:
         row[14:18] = self.data.qfrc_actuator
         self.n += 1
         return row
+
+
+def max_joint_inertia(model, config: WamSimConfig) -> np.ndarray:
+    """Largest diagonal of the joint-space mass matrix (incl. armature), kg m^2, over J4 across its range and the
+    held J2/J3 pose (J1 does not change the mass matrix); used by the joint-limit guard."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    hold = config.joint_map.to_wam(config.initial_virtual_rad)
+    best = np.zeros(model.nv)
+    full = np.zeros((model.nv, model.nv))
+    for q4 in np.linspace(*JOINT_RANGE_RAD[3], 9):
+        data.qpos[:] = hold
+        data.qpos[3] = q4
+        mujoco.mj_forward(model, data)
+        mujoco.mj_fullM(model, data, full)
+        best = np.maximum(best, np.diag(full))
+    return best
 
 
 def run_offline(config: WamSimConfig | None, arrivals_s: np.ndarray, datagrams: list[bytes],

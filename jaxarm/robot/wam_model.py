@@ -66,6 +66,10 @@ WRIST_LINKS = (
 VARIANTS = ("wam4", "wam7_wrist_locked")
 #: Joint ranges, rad (WAM User Manual D1001 Table 6; wam.md §1.1).
 JOINT_RANGE_RAD = ((-2.6, 2.6), (-2.0, 2.0), (-2.8, 2.8), (-0.9, 3.1))
+#: The model's joint stops sit this far inside the published range, rad, so that the penetration of MuJoCo's soft
+#: limit constraint (stiffened to STOP_SOLREF) never takes a joint outside the published range.
+STOP_INSET_RAD = 0.02
+STOP_SOLREF = (0.004, 1.0)
 #: Reflected rotor inertia at the joint output, kg m^2 (Barrett inertial spec via wam.md §1.2) -> MJCF armature.
 ARMATURE_KGM2 = (0.2052, 0.0944, 0.0944, 0.0346)
 #: Joint names (Barrett's driver convention, wam.md §4).
@@ -132,7 +136,7 @@ def build_mjcf(*, variant: str = "wam4", torque_limits_nm=(62.6, 84.2, 50.1, 26.
     closers = []
     child_pos, child_quat = (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)
     for i, (a, alpha, d) in enumerate(DH_TABLE):
-        lo, hi = JOINT_RANGE_RAD[i]
+        lo, hi = JOINT_RANGE_RAD[i][0] + STOP_INSET_RAD, JOINT_RANGE_RAD[i][1] - STOP_INSET_RAD
         tau = float(torque_limits_nm[i])
         end = np.array([a, 0.0, d])
         rot = _rx(alpha)
@@ -142,7 +146,7 @@ def build_mjcf(*, variant: str = "wam4", torque_limits_nm=(62.6, 84.2, 50.1, 26.
         lines += [
             f'{indent}<body name="link{i + 1}" pos="{_fmt(child_pos)}" quat="{_fmt(child_quat)}" gravcomp="1">',
             f'{indent}  <joint name="{JOINT_NAMES[i]}" type="hinge" axis="0 0 1" range="{lo:.6g} {hi:.6g}" '
-            f'limited="true" armature="{ARMATURE_KGM2[i]:.6g}" damping="{float(damping[i]):.6g}" '
+            f'limited="true" solreflimit="{_fmt(STOP_SOLREF)}" armature="{ARMATURE_KGM2[i]:.6g}" damping="{float(damping[i]):.6g}" '
             f'frictionloss="{float(frictionloss[i]):.6g}" actuatorfrcrange="{-tau:.6g} {tau:.6g}" '
             f'actuatorgravcomp="true"/>',
             f'{indent}  {_inertial(mass, com, inertia6, end, rot)}',
@@ -196,7 +200,8 @@ def _actuators(lines: list[str], torque_limits_nm) -> str:
     return "\n".join(lines)
 
 
-#: The committed asset (identical to ``build_mjcf()``; a test checks they agree), for viewers and other tools.
+#: The committed assets (identical to ``mjcf_for(PhysicsConfig(variant=...))``, i.e. the simulator's default
+#: model; a test checks they agree), for viewers and other tools.
 ASSET_DIR = Path(__file__).with_name("assets")
 ASSET_PATH = ASSET_DIR / "wam4.xml"
 
@@ -208,6 +213,15 @@ def write_mjcf(path: str | Path = ASSET_PATH, **kwargs) -> Path:
     return path
 
 
+def mjcf_for(physics=None, control_period_s: float = 0.002) -> str:
+    """The MJCF the simulator runs for a :class:`~jaxarm.robot.config.PhysicsConfig` (default: the defaults)."""
+    from jaxarm.robot.config import PhysicsConfig
+
+    ph = physics or PhysicsConfig()
+    return build_mjcf(variant=ph.variant, torque_limits_nm=ph.torque_limit_nm, damping=ph.damping,
+                      frictionloss=ph.frictionloss, timestep_s=control_period_s / ph.substeps)
+
+
 def load_model(**kwargs):
     """Compile ``build_mjcf(**kwargs)`` into a fresh ``mujoco.MjModel`` (a few ms)."""
     import mujoco
@@ -215,5 +229,9 @@ def load_model(**kwargs):
 
 
 if __name__ == "__main__":  # regenerate the committed assets
+    from jaxarm.robot.config import PhysicsConfig
+
     for name in VARIANTS:
-        print(write_mjcf(ASSET_DIR / f"{name}.xml", variant=name))
+        path = ASSET_DIR / f"{name}.xml"
+        path.write_text(mjcf_for(PhysicsConfig(variant=name)))
+        print(path)
