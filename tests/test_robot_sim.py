@@ -49,8 +49,9 @@ def test_robot_stays_in_joint_and_torque_limits_under_absurd_targets(mode):
     q, tau = log.rows[:, 10:14], log.rows[:, 14:18]
     assert np.all(np.isfinite(log.rows[:, :9])) and within_joint_range(q)
     assert np.all(np.abs(tau) <= LIMITS + 1e-9)
-    # The controller's own output is within libbarrett's control_signal_limit on the gravity-free J1, J4.
-    assert np.abs(tau[:, 0]).max() <= 25 + 1e-9 and np.abs(tau[:, 3]).max() <= 15 + 1e-9
+    # J1 and J4 carry (almost) no gravity here, so their torque is the controller's, within libbarrett's
+    # control_signal_limit (+ the tiny gravity term from J2/J3 being off pi/2 by ~1e-5 rad).
+    assert np.abs(tau[:, 0]).max() <= 25 + 1e-3 and np.abs(tau[:, 3]).max() <= 15 + 1e-3
     assert log.counters.out_of_range > n // 2 and log.counters.ok == n
 
 
