@@ -126,6 +126,8 @@ def _describe(p: osim.PathPoint, index: int) -> str:
 
 #: Weight of moment-arm residuals (m) relative to length residuals (m) in the replacement fit.
 MOMENT_ARM_WEIGHT = 1.0
+#: Weight of the penalty on moment arms whose sign differs from the true path's (m of wrong-signed moment arm).
+SIGN_WEIGHT = 10.0
 #: A fitted site stays within this distance (m, per axis) of the conditional point it replaces.
 FIT_BOX_M = 0.03
 #: Pull of a fitted site towards the conditional point it replaces: moving a site by 10 mm costs as much as
@@ -142,7 +144,9 @@ def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPo
     dropped. For the others ("switching" points, a discrete stand-in for wrapping), every subset of them is
     tried as fixed sites whose locations (on the same body, within +-FIT_BOX_M of the stored location) are fitted
     by least squares to the true switching path's muscle-tendon lengths and moment arms over the joint-range grid
-    (residuals: length error, MOMENT_ARM_WEIGHT x moment-arm error, FIT_PRIOR_WEIGHT sqrt(G) x displacement). The subset
+    (residuals: length error, MOMENT_ARM_WEIGHT x moment-arm error, SIGN_WEIGHT x any moment arm of the wrong
+    sign (so a fitted path never turns a flexor into an extensor where the true path is not),
+    FIT_PRIOR_WEIGHT sqrt(G) x displacement). The subset
     with the smallest RMS residual wins; the empty subset (drop them all) is one of the candidates.
     """
     from scipy.optimize import least_squares  # a dependency of jax
@@ -168,7 +172,9 @@ def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPo
         idx, locations = candidate(kept, locs)
         L, ma = gp.length_and_moment_arms([muscle.path[i].body for i in idx], locations)
         x0 = np.array([muscle.path[i].location for i in kept]).ravel() if kept else np.zeros(0)
-        return np.concatenate([L - L_true, MOMENT_ARM_WEIGHT * (ma - ma_true).ravel(), prior * (x - x0)])
+        wrong_sign = np.maximum(0.0, -ma * np.sign(ma_true)).ravel()
+        return np.concatenate([L - L_true, MOMENT_ARM_WEIGHT * (ma - ma_true).ravel(), SIGN_WEIGHT * wrong_sign,
+                               prior * (x - x0)])
 
     best = None
     for r in range(len(switching) + 1):
@@ -374,6 +380,37 @@ def build_muscle_table(model: osim.OsimModel, source_sha256: str) -> dict:
                   "fibre lengths per second; 0 means the file stores 0 (no value)."),
         "muscles": muscles,
     }
+
+
+# ----------------------------------------------------------------------------------------------- audit
+
+
+def dense_tendon_jacobian(mjmodel, mjdata) -> np.ndarray:
+    """(ntendon, nv) dL/dq from MuJoCo's C data (MuJoCo 4 stores ``ten_J`` sparse, rows per ``ten_J_rowadr``)."""
+    J = np.asarray(mjdata.ten_J)
+    if J.size == mjmodel.ntendon * mjmodel.nv and not hasattr(mjmodel, "ten_J_rowadr"):
+        return J.reshape(mjmodel.ntendon, mjmodel.nv).copy()
+    out = np.zeros((mjmodel.ntendon, mjmodel.nv))
+    for t in range(mjmodel.ntendon):
+        a, n = mjmodel.ten_J_rowadr[t], mjmodel.ten_J_rownnz[t]
+        out[t, mjmodel.ten_J_colind[a:a + n]] = J.ravel()[a:a + n]
+    return out
+
+
+def mjcf_path_geometry(mjmodel, grid: list[dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo C tendon lengths (G, M) and moment arms -ten_J (G, M, 2) on a grid of osim coordinate dicts."""
+    import mujoco
+
+    d = mujoco.MjData(mjmodel)
+    L, ma = [], []
+    for g in grid:
+        d.qpos[:] = (g["arm_flex"], g["elbow_flex"])
+        mujoco.mj_kinematics(mjmodel, d)
+        mujoco.mj_comPos(mjmodel, d)
+        mujoco.mj_tendon(mjmodel, d)
+        L.append(d.ten_length.copy())
+        ma.append(-dense_tendon_jacobian(mjmodel, d))
+    return np.asarray(L), np.asarray(ma)
 
 
 # ----------------------------------------------------------------------------------------------- entry point
