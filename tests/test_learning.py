@@ -1,5 +1,6 @@
 """Learning-rule primitives: critic thresholds, tagging windows, soft-bounded R-STDP, scaling, babbling, MetaParams."""
 import math
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -227,6 +228,11 @@ def test_scaling_never_scales_up_and_skips_silent_presynaptic_cells():
 
 def run_babbling(key, mp=MP, config=BabblingConfig(), n_updates=3000):
     """Babbling at every RL update (60 ms) over n_updates; returns stacked states and rates."""
+    return _run_babbling(key, mp, config, n_updates)
+
+
+@partial(jax.jit, static_argnames=("config", "n_updates"))
+def _run_babbling(key, mp, config, n_updates):
     def body(state, i):
         t = 60.0 * (i + 1)
         state, rates = babble(jax.random.fold_in(key, i), state, t, mp, config)
@@ -259,19 +265,18 @@ def test_babbling_durations_patterns_and_rates_as_the_code_did():
 
 
 def test_babbling_is_deterministic_for_a_pinned_key():
-    a, _ = run_babbling(jax.random.PRNGKey(11), n_updates=500)
-    b, _ = run_babbling(jax.random.PRNGKey(11), n_updates=500)
-    c, _ = run_babbling(jax.random.PRNGKey(12), n_updates=500)
+    a, _ = run_babbling(jax.random.PRNGKey(11))
+    b, _ = run_babbling(jax.random.PRNGKey(11))
+    c, _ = run_babbling(jax.random.PRNGKey(12))
     for x, y in zip(a, b):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
     assert not np.array_equal(np.asarray(a.change_dt_ms), np.asarray(c.change_dt_ms))
 
 
 def test_babbling_explore_tot_cycle_mode_and_paper_variant():
-    singles, _ = run_babbling(jax.random.PRNGKey(1), MP.replace(explore_tot=jnp.asarray(8.0)), n_updates=1500)
+    singles, _ = run_babbling(jax.random.PRNGKey(1), MP.replace(explore_tot=jnp.asarray(8.0)))
     assert set(changes(singles)[0].tolist()) == {0, 1, 2, 3}
-    cycle, _ = run_babbling(jax.random.PRNGKey(1), MP.replace(random_muscle_dt_max_ms=jnp.asarray(0.0)),
-                            n_updates=400)
+    cycle, _ = run_babbling(jax.random.PRNGKey(1), MP.replace(random_muscle_dt_max_ms=jnp.asarray(0.0)))
     patterns, dts, _ = changes(cycle)
     assert patterns[:9].tolist() == [1, 2, 3, 4, 5, 6, 7, 0, 1] and np.all(dts == 1000.0)
     paper, _ = run_babbling(jax.random.PRNGKey(1), config=BabblingConfig(variant="paper"))

@@ -30,7 +30,9 @@ keeps DLJ to about 0.1-1 %; finer sampling needs float64 (``jax.enable_x64``).
 from __future__ import annotations
 
 import math
+from functools import partial
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -70,6 +72,7 @@ def _derivative(xy, dt, order: int):
     return jnp.einsum("tk,...tkd->...td", w, xy[..., index, :]) / jnp.asarray(dt, xy.dtype) ** order
 
 
+@jax.jit
 def jerk(xy, dt):
     """Jerk x'''(t_i) at every sample, (..., T, 2) in m/s³, by the 5-point stencils of this module.
 
@@ -78,6 +81,7 @@ def jerk(xy, dt):
     return _derivative(xy, dt, 3)
 
 
+@jax.jit
 def velocity(xy, dt):
     """Velocity x'(t_i) at every sample, (..., T, 2) in m/s, by 5-point stencils (4th-order accurate)."""
     return _derivative(xy, dt, 1)
@@ -96,6 +100,7 @@ def path_length(xy):
     return jnp.sum(jnp.sqrt(jnp.sum(seg * seg, axis=-1)), axis=-1)
 
 
+@partial(jax.jit, static_argnames=("normalise",))
 def dimensionless_jerk(xy, dt, normalise: str = "mean"):
     """Dimensionless jerk (∫|x'''|² dt) · D³ / v² of a hand path (see the module docstring for the exact scheme).
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 
 #: Success radius of the paper, m.
@@ -55,6 +56,7 @@ def _masked_mean(values, mask):
     return jnp.where(n > 0, total / jnp.maximum(n, 1), jnp.nan)
 
 
+@jax.jit
 def reach_metrics(xy, target_xy, dt, radius_m=SUCCESS_RADIUS_M, onset_speed_m_s=ONSET_SPEED_M_S) -> ReachMetrics:
     """Reach metrics of one trial.
 

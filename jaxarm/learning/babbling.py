@@ -29,6 +29,7 @@ Muscle groups (rates order): 0 shoulder extensors, 1 shoulder flexors, 2 elbow e
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -103,6 +104,7 @@ def pattern_rates(pattern, on_rate_hz, off_rate_hz):
     return jnp.where(on, jnp.asarray(on_rate_hz, jnp.float32), jnp.asarray(off_rate_hz, jnp.float32))
 
 
+@partial(jax.jit, static_argnames=("config",))
 def babble(key, state: BabblingState, t_ms, mp, config: BabblingConfig = BabblingConfig()):
     """One babbling step, to be called at every RL update (t in ms since the start of the run).
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
@@ -156,6 +157,7 @@ def _check_table() -> None:
 _check_table()
 
 
+@jax.jit
 def to_unit(mp: MetaParams):
     """Map to the unit cube: (..., len(NAMES)) with 0 = lo, 1 = hi on each field's scale (values outside the
     bounds map outside [0, 1])."""
@@ -169,6 +171,7 @@ def to_unit(mp: MetaParams):
     return jnp.stack(cols, axis=-1)
 
 
+@jax.jit
 def from_unit(u) -> MetaParams:
     """Inverse of :func:`to_unit`; ``u`` (..., len(NAMES)) is clipped to [0, 1] first, so the result is always
     within :data:`BOUNDS`. Works under ``jit``/``vmap`` (evolution's ask -> MetaParams)."""
@@ -184,6 +187,7 @@ def from_unit(u) -> MetaParams:
     return MetaParams(**fields)
 
 
+@jax.jit
 def clip_to_bounds(mp: MetaParams) -> MetaParams:
     """Each field clipped to its :data:`BOUNDS` range."""
     return MetaParams(**{n: jnp.clip(jnp.asarray(getattr(mp, n), jnp.float32), BOUNDS[n].lo, BOUNDS[n].hi)

@@ -12,10 +12,13 @@ values of any shape, with matching ``presyn`` global ids.
 """
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 
 
+@partial(jax.jit, static_argnames=("n_cells",))
 def scaling_factor(wgain, base_abs_weight, presyn, n_cells: int, valid=None):
     """The factor min(1, S0/S) that synaptic scaling would apply now (scalar).
 
@@ -45,6 +48,7 @@ def scaling_factor(wgain, base_abs_weight, presyn, n_cells: int, valid=None):
     return jnp.where((s > 0) & (ratio < 1.0), ratio, 1.0)
 
 
+@partial(jax.jit, static_argnames=("n_cells",))
 def apply_synaptic_scaling(wgain, base_abs_weight, presyn, n_cells: int, valid=None):
     """Scale every gain by :func:`scaling_factor`. Returns (scaled wgain pytree, factor)."""
     factor = scaling_factor(wgain, base_abs_weight, presyn, n_cells, valid)

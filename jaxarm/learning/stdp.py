@@ -29,7 +29,9 @@ Which synapses are plastic and their maxima: :data:`PLASTIC_PATHWAYS`, :func:`pa
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
+import jax
 import jax.numpy as jnp
 
 from jaxarm.config.validate import ConfigError, check_range
@@ -92,6 +94,7 @@ def pathway_inc(pre: str, post: str, mp):
     return mp.learn_rate if is_plastic(pre, post) else jnp.zeros_like(mp.learn_rate)
 
 
+@jax.jit
 def tag_pre_before_post(pdope, presyn, last_spike_ms, post_spiked, t_ms, max_plast_t_ms, plastic):
     """Forward tags: set ``pdope = t`` on plastic synapses onto cells spiking at t whose presynaptic cell last
     spiked within [0, max_plast_t_ms] ms before.
@@ -111,6 +114,7 @@ def tag_pre_before_post(pdope, presyn, last_spike_ms, post_spiked, t_ms, max_pla
     return jnp.where(hit, jnp.asarray(t_ms, pdope.dtype), pdope)
 
 
+@jax.jit
 def tag_post_before_pre(pdope, presyn, pre_spiked, last_spike_post_ms, t_ms, max_plast_t_ms, plastic):
     """Backward tags (variant, BACKELIGTR): when a presynaptic cell spikes at t, set ``pdope = -t`` on its plastic
     synapses onto cells that last spiked within [0, max_plast_t_ms] ms before.
@@ -126,6 +130,7 @@ def tag_post_before_pre(pdope, presyn, pre_spiked, last_spike_post_ms, t_ms, max
     return jnp.where(hit, -jnp.asarray(t_ms, pdope.dtype), pdope)
 
 
+@partial(jax.jit, static_argnames=("config",))
 def tag_on_spikes(pdope, presyn, post_ids, spiked, last_spike_ms, t_ms, max_plast_t_ms, plastic,
                   config: EligibilityConfig = EligibilityConfig()):
     """All tagging for one time step in global-id form: forward tags for spiking postsynaptic cells and, with
@@ -148,6 +153,7 @@ def eligible(pdope, plastic, t_ms, max_elig_tr_dur_ms):
     return (pdope > NO_TAG_MS) & plastic & (t_ms - jnp.abs(pdope) <= max_elig_tr_dur_ms)
 
 
+@partial(jax.jit, static_argnames=("config",))
 def dopamine_update(wgain, pdope, plastic, maxw, inc, t_ms, signal, max_elig_tr_dur_ms,
                     config: EligibilityConfig = EligibilityConfig()):
     """Apply one critic signal to every synapse with a live tag (the original's ``dopelearn``).

@@ -94,6 +94,10 @@ class WamSimulator:
         self.model = mujoco.MjModel.from_xml_string(mjcf_for(ph, self.period_s))
         self.data = mujoco.MjData(self.model)
         self.params = control_params(self.config, max_joint_inertia(self.model, self.config))
+        jm = self.config.joint_map
+        # The joint map's inverse as index/offset/scale pairs, so the per-tick log avoids array allocation.
+        self._undo = ((jm.shoulder_joint, jm.shoulder_offset_rad, jm.shoulder_scale),
+                      (jm.elbow_joint, jm.elbow_offset_rad, jm.elbow_scale))
         self.reset()
 
     def reset(self) -> None:
@@ -103,6 +107,7 @@ class WamSimulator:
         self._mj.mj_forward(self.model, self.data)
         self.control = control_init(q0)
         self.receiver = receiver_init(q0)
+        self._counted, self._ok_bad = None, (0, 0)
         self.n = 0
 
     @property
@@ -118,14 +123,17 @@ class WamSimulator:
         self.control, tau = control_step(self.params, self.control, q, self.receiver.target)
         self.data.ctrl[:] = tau
         self._mj.mj_step(self.model, self.data, nstep=self.config.physics.substeps)
-        jm = self.config.joint_map
         r = self.receiver
         row = np.empty(len(LOG_COLUMNS))
         row[0] = t
-        row[1:3] = jm.to_virtual(r.target)
-        row[3:5] = jm.to_virtual(q)
-        row[5] = r.counters.ok
-        row[6] = r.counters.bad
+        (js, os_, ss), (je, oe, se) = self._undo
+        row[1] = (r.target[js] - os_) / ss
+        row[2] = (r.target[je] - oe) / se
+        row[3] = (q[js] - os_) / ss
+        row[4] = (q[je] - oe) / se
+        if r.counters is not self._counted:   # counters change only when packets arrive
+            self._counted, self._ok_bad = r.counters, (r.counters.ok, r.counters.bad)
+        row[5], row[6] = self._ok_bad
         row[7] = accepted > 0
         row[8] = -1 if r.seq is None else r.seq
         row[9] = math.nan if r.t is None else r.t
