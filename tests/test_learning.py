@@ -12,7 +12,8 @@ from jaxarm.learning import (BOUNDS, EXPLORE_PATTERNS, NAMES, NO_TAG_MS, ORIGINA
                              MetaParams, apply_synaptic_scaling, babble, clip_to_bounds, critic_signal,
                              dopamine_update, em_noise_rates_in_test, from_unit, init_babbling, is_plastic,
                              pathway_inc, pathway_maxw, rl_update_due, scaling_due, scaling_factor, stack,
-                             start_epoch, tag_on_spikes, tag_post_before_pre, tag_pre_before_post, to_unit)
+                             start_epoch, tag_on_spikes, tag_post_before_pre, tag_pre_before_post, tag_spiking_rows,
+                             to_unit)
 
 MP = MetaParams.original()
 
@@ -78,6 +79,28 @@ def test_forward_tagging_matches_a_direct_loop_on_random_data():
             lp = last[presyn[i, j]]
             hit = spiked[i] and plastic[i, j] and lp >= 0 and 0 <= t - lp <= window
             assert out[i, j] == (t if hit else old[i, j])
+
+
+def test_sparse_row_tagging_equals_dense_tagging():
+    rng = np.random.default_rng(5)
+    n_cells, n_post, k, t = 30, 10, 6, 400.0
+    presyn = jnp.asarray(rng.integers(0, n_cells, size=(n_post, k)))
+    last = jnp.asarray(np.where(rng.random(n_cells) < 0.2, -1e9, t - rng.uniform(0, 120, n_cells)), jnp.float32)
+    plastic = jnp.asarray(rng.random((n_post, k)) < 0.8)
+    old = jnp.asarray(np.where(rng.random((n_post, k)) < 0.3, t - 20.0, NO_TAG_MS), jnp.float32)
+    spiking = np.array([7, 2, 0])
+    post_spiked = jnp.zeros(n_post, bool).at[spiking].set(True)
+    dense = tag_pre_before_post(old, presyn, last, post_spiked, t, 69.57, plastic)
+    # capacity 5: three real rows, two unused slots whose (garbage) row ids must not be written
+    rows = jnp.asarray([7, 2, 0, 0, 7])
+    valid = jnp.asarray([True, True, True, False, False])
+    sparse = tag_spiking_rows(old, presyn, last, rows, valid, t, 69.57, plastic)
+    np.testing.assert_array_equal(np.asarray(sparse), np.asarray(dense))
+    assert not np.array_equal(np.asarray(dense), np.asarray(old))           # the case is not trivial
+    # per-row spike times
+    per_row = tag_spiking_rows(old, presyn, last, rows, valid, jnp.asarray([t, t - 1, t, 0, 0]), 69.57, plastic)
+    row2 = tag_pre_before_post(old, presyn, last, jnp.zeros(n_post, bool).at[2].set(True), t - 1, 69.57, plastic)
+    np.testing.assert_array_equal(np.asarray(per_row)[2], np.asarray(row2)[2])
 
 
 def test_backward_tags_are_negative_and_off_by_default():

@@ -7,7 +7,7 @@ from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, Bound, MetaParam
 from jaxarm.learning.scaling import apply_synaptic_scaling, scaling_due, scaling_factor
 from jaxarm.learning.stdp import (NEVER_SPIKED_MS, NO_TAG_MS, PLASTIC_PATHWAYS, EligibilityConfig, dopamine_update,
                                   eligible, is_plastic, pathway_inc, pathway_maxw, tag_on_spikes, tag_post_before_pre,
-                                  tag_pre_before_post)
+                                  tag_pre_before_post, tag_spiking_rows)
 
 __all__ = [
     "EXPLORE_PATTERNS", "BabblingConfig", "BabblingState", "babble", "em_noise_rates_in_test", "init_babbling",
@@ -17,4 +17,5 @@ __all__ = [
     "apply_synaptic_scaling", "scaling_due", "scaling_factor",
     "NEVER_SPIKED_MS", "NO_TAG_MS", "PLASTIC_PATHWAYS", "EligibilityConfig", "dopamine_update", "eligible",
     "is_plastic", "pathway_inc", "pathway_maxw", "tag_on_spikes", "tag_post_before_pre", "tag_pre_before_post",
+    "tag_spiking_rows",
 ]

@@ -115,6 +115,32 @@ def tag_pre_before_post(pdope, presyn, last_spike_ms, post_spiked, t_ms, max_pla
 
 
 @jax.jit
+def tag_spiking_rows(pdope, presyn, last_spike_ms, rows, row_valid, t_ms, max_plast_t_ms, plastic):
+    """Forward tags touching only the rows of cells that spiked: the sparse form of :func:`tag_pre_before_post`.
+
+    The dense form costs O(all synapses) per call; this one O(capacity x in-degree), for a per-step call with a
+    fixed capacity of spiking cells (the network must count spikes beyond its capacity as an overflow).
+
+    Args:
+        pdope, presyn, plastic: (n_post, K) as in :func:`tag_pre_before_post` (``plastic`` must be full-shape).
+        last_spike_ms: (n_cells,) ms (negative = never).
+        rows: (cap,) int row indices (postsynaptic cells of this block) that spiked; row_valid: (cap,) bool, False
+            for unused slots. A row must appear at most once among the valid slots.
+        t_ms: spike time(s), ms: a scalar or (cap,) per-row times.
+    """
+    n_post = pdope.shape[0]
+    rows = jnp.asarray(rows)
+    safe = jnp.where(row_valid, rows, 0)
+    last_pre = jnp.asarray(last_spike_ms)[presyn[safe]]                       # (cap, K)
+    t_row = jnp.broadcast_to(jnp.asarray(t_ms, pdope.dtype), rows.shape)[:, None]
+    d = t_row - last_pre
+    hit = plastic[safe] & (last_pre >= 0) & (d >= 0) & (d <= max_plast_t_ms)
+    new_rows = jnp.where(hit, t_row, pdope[safe])
+    # unused slots scatter out of bounds and are dropped, so they can never overwrite a real row
+    return pdope.at[jnp.where(row_valid, rows, n_post)].set(new_rows, mode="drop")
+
+
+@jax.jit
 def tag_post_before_pre(pdope, presyn, pre_spiked, last_spike_post_ms, t_ms, max_plast_t_ms, plastic):
     """Backward tags (variant, BACKELIGTR): when a presynaptic cell spikes at t, set ``pdope = -t`` on its plastic
     synapses onto cells that last spiked within [0, max_plast_t_ms] ms before.
