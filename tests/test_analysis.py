@@ -31,6 +31,9 @@ def test_cubic_reach_scores_exactly_144(duration, amplitude, angle, n):
         xy, dt = straight_reach(CUBIC, n, duration, amplitude, angle)
         assert float(dimensionless_jerk(xy, dt)) == pytest.approx(144.0, rel=1e-9)
         np.testing.assert_allclose(np.asarray(jerk_magnitude(xy, dt)), 12 * amplitude / duration ** 3, rtol=1e-7)
+        # x = Aτ³ (starts at rest, free end): jerk 6A/D³, ∫jerk² = 36 A²/D⁵, v_mean = A/D -> exactly 36
+        xy, dt = straight_reach(lambda u: u ** 3, n, duration, amplitude, angle)
+        assert float(dimensionless_jerk(xy, dt)) == pytest.approx(36.0, rel=1e-9)
 
 
 def test_stencils_are_exact_for_quartics():

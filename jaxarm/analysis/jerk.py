@@ -15,14 +15,18 @@ Discretisation (documented, deterministic, no smoothing):
 * v_mean = polyline length Σ|x[i+1] - x[i]| / D (exact for any monotone straight path).
 
 Because every term is homogeneous, ``dt`` cancels: DLJ = (T-1)^5 · Σ_trapz |Δ³-stencil x|² / L², so the value is
-independent of the time unit, the length unit, the amplitude and the duration. Known values: a cubic rest-to-rest
-reach x = A(3τ² - 2τ³) scores exactly 144; the minimum-jerk reach x = A(10τ³ - 15τ⁴ + 6τ⁵) scores 720 (to O(dt²));
-uniform circular motion through an angle θ scores θ⁴; a constant-velocity path scores 0.
+independent of the time unit, the length unit, the amplitude and the duration. Known values: the cubic reach
+x = A(3τ² - 2τ³) (zero velocity but non-zero acceleration at both ends) scores exactly 144; x = Aτ³ scores 36; the
+minimum-jerk reach x = A(10τ³ - 15τ⁴ + 6τ⁵) scores 720 (to O(dt²)); uniform circular motion through an angle θ
+scores θ⁴; a constant-velocity path scores 0.
 
-The paper's absolute values (0.76, 1.72, 28.1; ``reference_values.md``) cannot come from this formula in SI units
-(any smooth rest-to-rest straight reach scores >= 720 under it), so compare the ordering and the ratios between
-conditions, not the absolute numbers. ``normalise="peak"`` gives Hogan & Sternad's own recommended variant
-(v_peak instead of v_mean; a minimum-jerk reach scores 720 / 1.875² = 204.8).
+The paper's absolute values (0.76, 1.72, 28.1; ``reference_values.md``) cannot come from this formula for reaches
+like its own. A movement that starts at rest (zero velocity and acceleration) satisfies
+|x(D) - x(0)| <= sqrt(∫|jerk|² dt) · sqrt(D⁵/20) (Cauchy-Schwarz), hence DLJ >= 20 · (displacement / path length)²
+whatever happens at the end, and a straight reach with zero velocity and acceleration at both ends scores >= 720.
+Compare the ordering and the ratios between conditions, not the absolute numbers. ``normalise="peak"`` gives
+Hogan & Sternad's own recommended variant (v_peak instead of v_mean; the minimum-jerk reach scores
+720 / 1.875² = 204.8).
 
 Precision: finite differences of order 3 cancel digits. With float32 positions, a 15 cm reach sampled every 10 ms
 keeps DLJ to about 0.1-1 %; finer sampling needs float64 (``jax.enable_x64``).

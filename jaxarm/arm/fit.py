@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm.arm.geometry import FIT_PATH, MJCF_PATH, c_geometry, load_mjmodel, poly_exponents, poly_features, tendon_names, trig_features
+from jaxarm.arm.geometry import (FIT_PATH, MJCF_PATH, c_geometry, file_sha256, load_mjmodel, poly_exponents,
+                                  poly_features, tendon_names, trig_features)
 from jaxarm.config.arm import ELBOW_RANGE_DEG, SHOULDER_RANGE_DEG
 
 MARGIN_DEG = 10.0
@@ -55,7 +56,7 @@ def fit(mjcf: Path = MJCF_PATH, degrees=range(3, 10), tol_mm: float = 0.1, grid:
     targets = np.stack([masses[:, 0, 0], masses[:, 0, 1], masses[:, 1, 1]], axis=1)
     mass_coef, *_ = np.linalg.lstsq(trig_features(q2), targets, rcond=None)
     mass_err = np.abs(trig_features(q2) @ mass_coef - targets).max()
-    return dict(names=np.array(tendon_names(model)), exponents=chosen["exponents"], length_coef=chosen["length_coef"],
+    return dict(mjcf_sha256=np.array(file_sha256(mjcf)), names=np.array(tendon_names(model)), exponents=chosen["exponents"], length_coef=chosen["length_coef"],
                 q_center=center, q_halfwidth=halfwidth, mass_coef=mass_coef, degree=chosen["degree"],
                 length_max_err_m=chosen["max_err_m"], mass_max_err=mass_err)
 

@@ -33,6 +33,12 @@ class ArmGeometry(NamedTuple):
     bias_nm: jnp.ndarray         # (2,), velocity-product (Coriolis/centrifugal) torques, N m
 
 
+def file_sha256(path: Path | str) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def load_mjmodel(path: Path | str = MJCF_PATH):
     import mujoco
 
@@ -122,8 +128,11 @@ def trig_features(q2):
 class FastGeometry:
     """Geometry from the committed fits in ``assets/fast_fit.npz`` (see ``python -m jaxarm.arm.fit``)."""
 
-    def __init__(self, path: Path | str = FIT_PATH):
+    def __init__(self, path: Path | str = FIT_PATH, mjcf: Path | str = MJCF_PATH):
         fit = np.load(path)
+        if str(fit["mjcf_sha256"]) != file_sha256(mjcf):
+            raise ValueError(f"{path} was fitted to a different {Path(mjcf).name}; "
+                             "regenerate it with `python -m jaxarm.arm.fit`")
         self.names = tuple(str(n) for n in fit["names"])
         self.exponents = jnp.asarray(fit["exponents"])
         self.length_coef = jnp.asarray(fit["length_coef"], jnp.float32)   # (K, M)
