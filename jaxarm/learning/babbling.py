@@ -36,7 +36,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.config.validate import ConfigError, check_choice, check_range
+from jaxarm.config.validate import check_choice, check_range
 
 N_GROUPS = 4
 

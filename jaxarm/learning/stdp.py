@@ -24,6 +24,9 @@ Variants the paper describes, off by default (:class:`EligibilityConfig`): backw
 ``pdope = -t`` with the opposite sign of learning; exponential decay of a tag's effect, ``exp(-(t - |pdope|)/tau)``
 with tau = 20 ms; consuming tags after use; hard bounds (``w += inc`` clipped to [0, maxw]).
 
+Per-step tagging: :func:`tag_pre_before_post` touches every synapse of a block; :func:`tag_spiking_rows` touches
+only the rows of cells that spiked (fixed capacity), which is what a clock-driven network should call every step.
+
 Which synapses are plastic and their maxima: :data:`PLASTIC_PATHWAYS`, :func:`pathway_maxw`, :func:`pathway_inc`.
 """
 from __future__ import annotations
