@@ -72,7 +72,7 @@ def test_loss_and_silence_hold_without_nan():
 
 
 def test_without_j4_damping_the_libbarrett_jv_loop_limit_cycles(short_traj):
-    # Why PhysicsConfig.damping has 3 N m s/rad on J4 (config.VALUES["joint_damping_nms"]).
+    # Why PhysicsConfig.damping has 2.5 N m s/rad on J4 (config.VALUES["joint_damping_nms"]).
     def elbow_ratio(damping):
         cfg = WamSimConfig(physics=PhysicsConfig(damping=damping))
         log = simulate(short_traj, cfg, seed=0, duration_s=5.0)

@@ -66,11 +66,11 @@ VALUES: dict[str, Sourced] = {
                                "derived: total joint torque (control + gravity) <= motor max continuous torque "
                                "1.49 N m (wam.md §1.2) x transmission (wam4.conf j2mp: 42; 2x28.25 and 2x16.8155 "
                                "for the J2/J3 differential; 18)"),
-    "joint_damping_nms": Sourced((0.0, 0.0, 0.0, 3.0), "N m s/rad",
+    "joint_damping_nms": Sourced((0.0, 0.0, 0.0, 2.5), "N m s/rad",
                                  "assumption, set by experiments/wam_calibrate.py: Barrett publishes no friction; "
                                  "without damping the libbarrett J4 jv loop (kp 18, 56 rad/s low-pass, 2 ms) "
-                                 "limit-cycles on the 4-DOF elbow inertia (0.076 kg m^2); 3 is the smallest "
-                                 "scanned value that removes it"),
+                                 "limit-cycles on the 4-DOF elbow inertia (0.076 kg m^2); 2.5 is the smallest "
+                                 "scanned value with robot/target elbow displacement < 1.05"),
     # --- the paper's custom systems (unpublished; wam.md §6) ---------------------------------------------------
     "pos_to_vel_gain_per_s": Sourced(20.0, "1/s",
                                      "calibrated once: experiments/wam_calibrate.py (PosToVel v=K(q_t-q); paper's "
