@@ -11,6 +11,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from jaxarm.config.validate import ConfigError
 from jaxarm.robot.config import (ControllerConfig, JitterConfig, PhysicsConfig, ReceiverConfig, WamSimConfig,
                                  values_markdown)
 
@@ -63,7 +64,10 @@ def wam_sim_main(argv: list[str]) -> int:
         p.error("--duration SECONDS is required (0 < SECONDS <= 86400)")
     if not 0 <= args.port < 65536:
         p.error("--port must be in 0..65535")
-    config = _sim_config(args)
+    try:
+        config = _sim_config(args)
+    except ConfigError as err:
+        p.error(str(err))
     from jaxarm.robot.simulator import config_dict, open_receiver_socket, run_live
 
     if args.host not in ("127.0.0.1", "localhost", "::1"):
@@ -107,9 +111,10 @@ def export_main(argv: list[str]) -> int:
     p.add_argument("--wam-joints", action="store_true",
                    help="send the 4 WAM joint angles (joint map applied here) instead of the 2 virtual angles")
     p.add_argument("--start-delay", type=float, default=0.0, metavar="SECONDS", help="wait before the first packet")
+    p.add_argument("--duration", type=float, default=None, metavar="SECONDS",
+                   help="UDP: stop sending after this many seconds; offline: robot time to simulate (default: "
+                        "the whole trajectory; offline adds 0.5 s after the last packet)")
     g = p.add_argument_group("offline (--to offline)")
-    g.add_argument("--duration", type=float, default=None, metavar="SECONDS",
-                   help="robot time to simulate (default: last packet + 0.5 s)")
     g.add_argument("--log", type=Path, default=None, metavar="FILE.csv", help="500 Hz CSV log")
     g.add_argument("--report", type=Path, default=None, metavar="FILE.json", help="tracking metrics (JSON)")
     g.add_argument("--figures", type=Path, default=None, metavar="DIR", help="write Fig. 9/10-style PNGs here")
@@ -122,10 +127,15 @@ def export_main(argv: list[str]) -> int:
         traj = load_trajectory(args.trajectory, network=args.network)
     except (OSError, ValueError, KeyError) as err:
         p.error(str(err))
-    jitter = JitterConfig(args.jitter_mean_ms, args.jitter_sd_ms)
-    timing = "live" if args.live else "jitter"
-    if args.to == "offline":
+    try:
+        jitter = JitterConfig(args.jitter_mean_ms, args.jitter_sd_ms)
         config = _sim_config(args)
+    except ConfigError as err:
+        p.error(str(err))
+    timing = "live" if args.live else "jitter"
+    if args.duration is not None and not args.duration > 0:
+        p.error("--duration must be > 0")
+    if args.to == "offline":
         log = simulate(traj, config, timing=timing, seed=args.seed, duration_s=args.duration, jitter=jitter,
                        fmt=args.format, wam_joints=args.wam_joints, first_arrival_s=args.start_delay)
         from jaxarm.robot.metrics import tracking_report
@@ -155,6 +165,9 @@ def export_main(argv: list[str]) -> int:
     grid = resample(traj)
     data = packets(grid, args.format, args.wam_joints)
     times = send_times(len(data), timing, args.seed, jitter)
+    if args.duration is not None:
+        keep = times <= args.duration
+        data, times = [d for d, k in zip(data, keep) if k], times[keep]
     stats = stream_udp(host, port, data, times, start_delay_s=args.start_delay)
     print(json.dumps(dict(stats, to=f"udp://{host}:{port}", timing=timing, format=args.format)))
     return 0

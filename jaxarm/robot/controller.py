@@ -17,10 +17,15 @@ datagram judged in arrival order; the newest accepted one sets the target. Verdi
 * ``out_of_range``: decoded and in sequence but outside the joint range: clamped into the range (shrunk by
   ``limit_margin_rad``), counted, and accepted.
 * accepted packets count as ``ok``; accepted packets overtaken within the same tick also count as ``superseded``.
+  A raw packet (no sequence number) is judged on its content only and clears the sequence tracking.
 
 No accepted packet for ``timeout_s`` -> one ``timeouts`` count, the link forgets its sequence tracking (the next
 valid packet is accepted whatever its number, as after a sender restart) and, with ``on_timeout="hold_position"``,
 the target becomes the robot's current position.
+
+After the chain, a joint-limit guard (not libbarrett: it stands in for the WAM's mechanical stops and safety
+module) brakes a joint at full control torque when its stopping distance reaches the distance to its range limit.
+It never acts on a trajectory inside the task's ranges; it keeps absurd targets and jumps from driving a joint out.
 """
 from __future__ import annotations
 

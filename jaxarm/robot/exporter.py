@@ -141,6 +141,7 @@ def stream_udp(host: str, port: int, datagrams: list[bytes], times_s: np.ndarray
     """Send ``datagrams[k]`` at wall time ``start + times_s[k]`` to (host, port). Returns send statistics."""
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     lateness = np.zeros(len(datagrams))
+    errors = 0
     with socket.socket(family, socket.SOCK_DGRAM) as sock:
         t0 = time.perf_counter() + start_delay_s
         for k, data in enumerate(datagrams):
@@ -148,8 +149,11 @@ def stream_udp(host: str, port: int, datagrams: list[bytes], times_s: np.ndarray
             if wait > 0:
                 time.sleep(wait)
             lateness[k] = time.perf_counter() - (t0 + times_s[k])
-            sock.sendto(data, (host, port))
-    return {"sent": len(datagrams), "duration_s": float(times_s[-1]) if len(times_s) else 0.0,
+            try:
+                sock.sendto(data, (host, port))
+            except OSError:   # e.g. ICMP port unreachable reported on a later send: keep pacing, count it
+                errors += 1
+    return {"sent": len(datagrams) - errors, "send_errors": errors, "duration_s": float(times_s[-1]) if len(times_s) else 0.0,
             "lateness_ms_median": float(np.median(lateness) * 1e3) if len(lateness) else 0.0,
             "lateness_ms_max": float(lateness.max() * 1e3) if len(lateness) else 0.0}
 
