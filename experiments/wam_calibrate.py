@@ -19,7 +19,6 @@ import json
 import statistics
 from dataclasses import replace
 
-import numpy as np
 
 from jaxarm.robot.config import ControllerConfig, PhysicsConfig, WamSimConfig
 from jaxarm.robot.exporter import load_trajectory, simulate
