@@ -62,7 +62,7 @@ def keep_drop_baseline(model, muscle, gp, L_true, ma_true):
     for keep in itertools.product((False, True), repeat=len(cond)):
         kept = {i for i, k in zip(cond, keep) if k}
         pts = [p for i, p in enumerate(muscle.path) if not p.conditional or i in kept]
-        L, ma = gp.length_and_moment_arms([p.body for p in pts], np.array([p.location for p in pts]))
+        L, ma = gp.path_geometry([p.body for p in pts], [p.location for p in pts])
         rms = float(np.sqrt(np.mean((L - L_true) ** 2)))
         if best is None or rms < best[0]:
             best = (rms, L, ma)
@@ -164,7 +164,7 @@ def main(argv=None) -> dict:
     for k, m in enumerate(model.muscles):
         sids = [mjmodel.wrap_objid[mjmodel.tendon_adr[k] + j] for j in range(mjmodel.tendon_num[k])]
         bodies = [mujoco.mj_id2name(mjmodel, mujoco.mjtObj.mjOBJ_BODY, mjmodel.site_bodyid[s]) for s in sids]
-        L_sites, _ = gp.length_and_moment_arms(bodies, np.array([mjmodel.site_pos[s] for s in sids]))
+        L_sites, _ = gp.path_geometry(bodies, [mjmodel.site_pos[s] for s in sids])
         site_err = max(site_err, float(np.abs(L_sites - L_mj[:, k]).max()))
 
     muscles = {}

@@ -66,47 +66,63 @@ def joint_range_grid(step_deg: float = SELECTION_GRID_STEP_DEG) -> list[dict[str
 
 
 class GridPoses:
-    """Body poses over a grid of postures, and at +-h in each coordinate (for moment arms by central differences)."""
+    """Body poses over a grid of postures, and at +-h in each coordinate (for moment arms by central differences).
+
+    Poses are stacked as (K, G, ...) with K = 1 + 2 x n_coordinates: the grid itself, then +h and -h for each
+    coordinate in turn.
+    """
 
     def __init__(self, model: osim.OsimModel, grid: list[dict[str, float]], h: float = 1e-6):
         self.grid, self.h = grid, h
         self.coordinates = tuple(c.name for c in model.coordinates)
-        shifted = {"0": grid}
+        shifted = [grid]
         for c in self.coordinates:
             for sign in (+1, -1):
-                shifted[(c, sign)] = [{**g, c: g[c] + sign * h} for g in grid]
-        self.poses = {}
-        for key, gs in shifted.items():
-            ps = [osim.body_transforms(model, g) for g in gs]
-            self.poses[key] = {b: (np.stack([p[b][:3, :3] for p in ps]), np.stack([p[b][:3, 3] for p in ps]))
-                               for b in ps[0]}
+                shifted.append([{**g, c: g[c] + sign * h} for g in grid])
+        ps = [[osim.body_transforms(model, g) for g in gs] for gs in shifted]
+        self.rot = {b: np.array([[p[b][:3, :3] for p in row] for row in ps]) for b in ps[0][0]}
+        self.pos = {b: np.array([[p[b][:3, 3] for p in row] for row in ps]) for b in ps[0][0]}
+        self._fixed: dict = {}
 
-    def points(self, key, bodies: list[str], locations: np.ndarray) -> np.ndarray:
-        """(G, N, 3) ground positions of N body-fixed points."""
-        out = [self.poses[key][b][0] @ loc + self.poses[key][b][1] for b, loc in zip(bodies, locations)]
-        return np.stack(out, axis=1)
+    def point(self, body: str, location) -> np.ndarray:
+        """(K, G, 3) ground positions of one body-fixed point."""
+        return np.einsum("kgij,j->kgi", self.rot[body], np.asarray(location, dtype=float)) + self.pos[body]
 
-    @staticmethod
-    def polyline(pts: np.ndarray, mask: Optional[np.ndarray] = None) -> np.ndarray:
-        """(G,) lengths of the polylines through the points (only those with mask[g, i] true, if given)."""
+    def fixed_point(self, body: str, location) -> np.ndarray:
+        """:meth:`point`, memoised (for points that do not move during a fit)."""
+        key = (body, tuple(float(v) for v in location))
+        if key not in self._fixed:
+            self._fixed[key] = self.point(body, location)
+        return self._fixed[key]
+
+    def length_and_moment_arms(self, points: np.ndarray, mask: Optional[np.ndarray] = None):
+        """Lengths (G,) and moment arms -dL/dq (G, n_coordinates) of polylines through ``points`` (K, G, N, 3).
+
+        With ``mask`` (G, N), only the points with mask[g, i] true are part of the path at posture g (the active
+        set is frozen across the +-h evaluations, as OpenSim's moment arm is).
+        """
         if mask is None:
-            return np.linalg.norm(np.diff(pts, axis=1), axis=2).sum(axis=1)
-        return np.array([np.linalg.norm(np.diff(p[m], axis=0), axis=1).sum() for p, m in zip(pts, mask)])
-
-    def length_and_moment_arms(self, bodies, locations, mask=None) -> tuple[np.ndarray, np.ndarray]:
-        """Lengths (G,) and moment arms -dL/dq (G, n_coordinates) with the active set ``mask`` frozen."""
-        L = self.polyline(self.points("0", bodies, locations), mask)
-        ma = [-(self.polyline(self.points((c, 1), bodies, locations), mask)
-                - self.polyline(self.points((c, -1), bodies, locations), mask)) / (2 * self.h)
-              for c in self.coordinates]
+            total = np.linalg.norm(np.diff(points, axis=2), axis=3).sum(axis=2)
+        else:
+            total = np.zeros(points.shape[:2])
+            for pattern in np.unique(mask, axis=0):   # postures sharing an active set, in one go
+                rows = np.all(mask == pattern, axis=1)
+                sub = points[:, rows][:, :, pattern]
+                total[:, rows] = np.linalg.norm(np.diff(sub, axis=2), axis=3).sum(axis=2)
+        L = total[0]
+        ma = [-(total[1 + 2 * j] - total[2 + 2 * j]) / (2 * self.h) for j in range(len(self.coordinates))]
         return L, np.stack(ma, axis=1)
+
+    def path_geometry(self, bodies, locations, mask=None):
+        """Lengths and moment arms of a path through body-fixed points (fixed locations, memoised)."""
+        pts = np.stack([self.fixed_point(b, loc) for b, loc in zip(bodies, locations)], axis=2)
+        return self.length_and_moment_arms(pts, mask)
 
 
 def true_path_geometry(muscle: osim.Muscle, gp: GridPoses) -> tuple[np.ndarray, np.ndarray]:
     """The true OpenSim path on the grid: lengths (G,) and moment arms (G, 2), active set frozen at each posture."""
     mask = np.array([[p.active(g) for p in muscle.path] for g in gp.grid])
-    locs = np.array([p.location for p in muscle.path])
-    return gp.length_and_moment_arms([p.body for p in muscle.path], locs, mask)
+    return gp.path_geometry([p.body for p in muscle.path], [p.location for p in muscle.path], mask)
 
 
 @dataclass(frozen=True)
@@ -133,8 +149,33 @@ FIT_BOX_M = 0.03
 #: Pull of a fitted site towards the conditional point it replaces: moving a site by 10 mm costs as much as
 #: 0.1 mm more RMS length error over the grid (residual weight = FIT_PRIOR_WEIGHT * sqrt(grid size)).
 FIT_PRIOR_WEIGHT = 0.01
-#: Fitted site coordinates are rounded to this step (m) so regeneration is byte-for-byte stable.
+#: Fitted site coordinates live on a lattice of this step (m) so regeneration is byte-for-byte stable.
 FIT_ROUND_M = 1e-5
+
+
+def _lattice_polish(cost, x: np.ndarray, step: float = None, max_sweeps: int = 500) -> np.ndarray:
+    """Round ``x`` to the FIT_ROUND_M lattice, then descend coordinate-wise on the lattice to a local minimum.
+
+    Why: the optimum of a flat least-squares problem is only determined to a few micrometres, so rounding the
+    optimiser's answer could land on either side of a rounding boundary on another machine. A lattice local
+    minimum reached by comparisons is reproducible wherever the costs of neighbouring lattice points compare the
+    same way.
+    """
+    step = FIT_ROUND_M if step is None else step
+    k = np.round(np.asarray(x) / step).astype(np.int64)
+    best = cost(k * step)
+    for _ in range(max_sweeps):
+        improved = False
+        for j in range(k.size):
+            for d in (-1, 1):
+                trial = k.copy()
+                trial[j] += d
+                c = cost(trial * step)
+                if c < best:
+                    k, best, improved = trial, c, True
+        if not improved:
+            break
+    return k * step
 
 
 def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPoses] = None) -> PathChoice:
@@ -144,6 +185,7 @@ def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPo
     dropped. For the others ("switching" points, a discrete stand-in for wrapping), every subset of them is
     tried as fixed sites whose locations (on the same body, within +-FIT_BOX_M of the stored location) are fitted
     by least squares to the true switching path's muscle-tendon lengths and moment arms over the joint-range grid
+    then polished on a 10-micrometre lattice (:func:`_lattice_polish`)
     (residuals: length error, MOMENT_ARM_WEIGHT x moment-arm error, SIGN_WEIGHT x any moment arm of the wrong
     sign (so a fitted path never turns a flexor into an extensor where the true path is not),
     FIT_PRIOR_WEIGHT sqrt(G) x displacement). The subset
@@ -169,8 +211,10 @@ def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPo
 
     def residuals(x: np.ndarray, kept: tuple[int, ...]) -> np.ndarray:
         locs = x.reshape(-1, 3)
-        idx, locations = candidate(kept, locs)
-        L, ma = gp.length_and_moment_arms([muscle.path[i].body for i in idx], locations)
+        idx, _ = candidate(kept, locs)
+        pts = np.stack([gp.point(muscle.path[i].body, locs[kept.index(i)]) if i in kept
+                        else gp.fixed_point(muscle.path[i].body, muscle.path[i].location) for i in idx], axis=2)
+        L, ma = gp.length_and_moment_arms(pts)
         x0 = np.array([muscle.path[i].location for i in kept]).ravel() if kept else np.zeros(0)
         wrong_sign = np.maximum(0.0, -ma * np.sign(ma_true)).ravel()
         return np.concatenate([L - L_true, MOMENT_ARM_WEIGHT * (ma - ma_true).ravel(), SIGN_WEIGHT * wrong_sign,
@@ -182,8 +226,8 @@ def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPo
             x0 = np.array([muscle.path[i].location for i in kept], dtype=float).ravel()
             if kept:
                 fit = least_squares(residuals, x0, args=(kept,), bounds=(x0 - FIT_BOX_M, x0 + FIT_BOX_M),
-                                    x_scale=0.01, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
-                x = np.round(fit.x / FIT_ROUND_M) * FIT_ROUND_M
+                                    x_scale=0.01, xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=2000)
+                x = _lattice_polish(lambda z: float(np.sum(residuals(z, kept) ** 2)), fit.x)
             else:
                 x = x0
             cost = float(np.sum(residuals(x, kept) ** 2))
@@ -208,7 +252,7 @@ def resolve_path(model: osim.OsimModel, muscle: osim.Muscle, gp: Optional[GridPo
                          f"({_vec(np.round(shift * 1e3, 2))}) mm")
         else:
             notes.append(f"{_describe(p, i)}: dropped (fit)")
-    L, ma = gp.length_and_moment_arms([muscle.path[i].body for i in idx], locations)
+    L, ma = gp.path_geometry([muscle.path[i].body for i in idx], locations)
     return PathChoice(tuple(points), tuple(notes), float(np.sqrt(np.mean((L - L_true) ** 2))),
                       float(np.sqrt(np.mean((ma - ma_true) ** 2))))
 
