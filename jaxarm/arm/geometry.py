@@ -126,7 +126,11 @@ def trig_features(q2):
 
 
 class FastGeometry:
-    """Geometry from the committed fits in ``assets/fast_fit.npz`` (see ``python -m jaxarm.arm.fit``)."""
+    """Geometry from the committed fits in ``assets/fast_fit.npz`` (see ``python -m jaxarm.arm.fit``).
+
+    The polynomial's two partial derivatives are polynomials on the same monomials, so lengths and moment arms
+    come from one (K,) x (K, 3M) product; the monomials come from a table of powers, not from ``pow``.
+    """
 
     def __init__(self, path: Path | str = FIT_PATH, mjcf: Path | str = MJCF_PATH):
         fit = np.load(path)
@@ -134,26 +138,44 @@ class FastGeometry:
             raise ValueError(f"{path} was fitted to a different {Path(mjcf).name}; "
                              "regenerate it with `python -m jaxarm.arm.fit`")
         self.names = tuple(str(n) for n in fit["names"])
-        self.exponents = jnp.asarray(fit["exponents"])
-        self.length_coef = jnp.asarray(fit["length_coef"], jnp.float32)   # (K, M)
+        exps = np.asarray(fit["exponents"])
+        coef = np.asarray(fit["length_coef"], float)           # (K, M) in normalised angles
+        halfwidth = np.asarray(fit["q_halfwidth"], float)
+        row = {tuple(e): k for k, e in enumerate(exps)}
+        d_coef = [np.zeros_like(coef), np.zeros_like(coef)]     # d/dq_j re-expressed on the same monomials
+        for k, (i, j) in enumerate(exps):
+            if i > 0:
+                d_coef[0][row[(i - 1, j)]] += i * coef[k] / halfwidth[0]
+            if j > 0:
+                d_coef[1][row[(i, j - 1)]] += j * coef[k] / halfwidth[1]
+        self.n_muscles = coef.shape[1]
+        self.exponents = jnp.asarray(exps)
+        self.degree = int(exps.max())
+        self.all_coef = jnp.asarray(np.concatenate([coef, d_coef[0], d_coef[1]], axis=1), jnp.float32)
         self.q_center = jnp.asarray(fit["q_center"], jnp.float32)
-        self.q_halfwidth = jnp.asarray(fit["q_halfwidth"], jnp.float32)
+        self.q_halfwidth = jnp.asarray(halfwidth, jnp.float32)
         self.mass_coef = jnp.asarray(fit["mass_coef"], jnp.float32)       # (5, 3): M11, M12, M22
 
-    def mtu_lengths(self, q):
+    def _monomials(self, q):
         x = (jnp.asarray(q, jnp.float32) - self.q_center) / self.q_halfwidth
-        return poly_features(x, self.exponents) @ self.length_coef
+        powers = jnp.cumprod(jnp.concatenate([jnp.ones((1, 2), x.dtype), jnp.tile(x, (self.degree, 1))]), axis=0)
+        return powers[self.exponents[:, 0], 0] * powers[self.exponents[:, 1], 1]
+
+    def mtu_lengths(self, q):
+        return self._monomials(q) @ self.all_coef[:, : self.n_muscles]
 
     def mass_matrix(self, q2):
-        m11, m12, m22 = trig_features(q2) @ self.mass_coef
+        c, s = jnp.cos(q2), jnp.sin(q2)
+        m11, m12, m22 = jnp.stack([jnp.ones_like(c), c, s, c * c - s * s, 2 * s * c]) @ self.mass_coef
         return jnp.array([[m11, m12], [m12, m22]])
 
     def __call__(self, q, qd) -> ArmGeometry:
         q = jnp.asarray(q, jnp.float32)
         qd = jnp.asarray(qd, jnp.float32)
-        lengths, dl_dq = jax.jvp(self.mtu_lengths, (q,), (jnp.eye(2, dtype=q.dtype)[0],))
-        _, dl_dq2 = jax.jvp(self.mtu_lengths, (q,), (jnp.eye(2, dtype=q.dtype)[1],))
+        m = self.n_muscles
+        values = self._monomials(q) @ self.all_coef
+        lengths, moment_arms = values[:m], -jnp.stack([values[m:2 * m], values[2 * m:]], axis=-1)
         mass, dmass = jax.jvp(self.mass_matrix, (q[1],), (jnp.ones((), q.dtype),))
         # Lagrange: M qdd + dM/dt qd - 1/2 d(qd^T M qd)/dq = tau, and M depends on the elbow angle only.
         bias = dmass @ qd * qd[1] - 0.5 * jnp.array([0.0, qd @ dmass @ qd])
-        return ArmGeometry(lengths, -jnp.stack([dl_dq, dl_dq2], axis=-1), mass, bias)
+        return ArmGeometry(lengths, moment_arms, mass, bias)

@@ -106,8 +106,8 @@ def natural_cubic_spline(xs: list[np.ndarray], ys: list[np.ndarray]) -> Spline:
 
 def eval_spline(s: Spline, x):
     """Evaluate each muscle's spline at its own x (M,)."""
-    idx = jax.vmap(lambda knots, xi: jnp.searchsorted(knots, xi, side="right") - 1)(s.x, x)
-    idx = jnp.clip(idx, 0, s.last)
+    # Counting knots <= x beats a binary search at ~17 knots and vectorises over muscles without a loop.
+    idx = jnp.clip(jnp.sum(s.x <= x[:, None], axis=1) - 1, 0, s.last)
     x0 = jnp.take_along_axis(s.x, idx[:, None], axis=1)[:, 0]
     c = jnp.take_along_axis(s.c, idx[:, None, None], axis=1)[:, 0]
     h = x - x0

@@ -126,8 +126,7 @@ class MusculoskeletalArm:
         spring, damping = self.joint_limit_torque(s.q, s.qd)
         tau = geo.moment_arm_m.T @ tendon + spring - geo.bias_nm
         # (M + h B) qd' = M qd + h tau: implicit limit damping B = diag(damping).
-        lhs = geo.mass_matrix + h * jnp.diag(damping)
-        qd = jnp.linalg.solve(lhs, geo.mass_matrix @ s.qd + h * tau)
+        qd = solve_2x2(geo.mass_matrix + h * jnp.diag(damping), geo.mass_matrix @ s.qd + h * tau)
         return MusculoskeletalArmState(s.q + h * qd, qd, ms)
 
     def observe(self, state: MusculoskeletalArmState) -> ArmObs:
@@ -139,6 +138,12 @@ class MusculoskeletalArm:
                             fiber_length_m=lm, mtu_length_m=lmt)
         return ArmObs(q=state.q, qd=state.qd, hand=hand_position(state.q, self.config.segments_m),
                       proprio=lm[self.proprio_index], muscles=muscles)
+
+
+def solve_2x2(a, b):
+    """Closed-form solve of a 2x2 system (a batched LAPACK call costs far more than these few flops)."""
+    det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    return jnp.stack([a[1, 1] * b[0] - a[0, 1] * b[1], a[0, 0] * b[1] - a[1, 0] * b[0]]) / det
 
 
 def relaxed_tendon_slack(params: mus.MuscleParams, lmt0) -> np.ndarray:
