@@ -59,6 +59,19 @@ def test_unexcited_muscle_in_equilibrium_stays_there(params):
     np.testing.assert_allclose(f[-1], f[0], atol=1e-2 * float(p.max_force_n.max()) * 1e-2)
 
 
+@pytest.mark.parametrize("key, lo, hi", [("tendon_force_length", -0.01, 0.3), ("active_force_length", 0.3, 2.0),
+                                         ("passive_force_length", 0.5, 2.0)])
+def test_tabulated_spline_matches_the_natural_spline(key, lo, hi):
+    from scipy.interpolate import CubicSpline
+
+    table = mus.load_muscle_table()
+    spline = mus.natural_cubic_spline([m[key]["x"] for m in table], [m[key]["y"] for m in table])
+    x = np.linspace(lo, hi, 100_001)
+    exact = CubicSpline(table[0][key]["x"], table[0][key]["y"], bc_type="natural")(x)
+    got = np.asarray(mus.eval_spline(spline, jnp.asarray(x, jnp.float32)))
+    assert np.abs(got - exact).max() < 2e-6 * np.abs(exact).max() + 1e-6
+
+
 def test_spline_reproduces_its_knots(params):
     p, table = params
     knots = jnp.asarray([table[i]["tendon_force_length"]["x"][5] for i in range(len(table))], jnp.float32)

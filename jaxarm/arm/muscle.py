@@ -41,11 +41,23 @@ _MAX_SIN_PENNATION = 0.99
 
 
 class Spline(NamedTuple):
-    """Natural cubic spline packed for vectorised evaluation: per muscle, knots (M, K) and cubic coefficients."""
+    """Natural cubic splines tabulated for fast vectorised evaluation: one per muscle, or one shared by all.
 
-    x: jnp.ndarray         # (M, K) knots, padded with a huge value past each muscle's last knot
-    c: jnp.ndarray         # (M, K-1, 4) coefficients of (x - x_k)^3, ^2, ^1, ^0 on [x_k, x_k+1]
-    last: jnp.ndarray      # (M,) index of each muscle's last interval
+    Between its second and second-to-last knot each curve is cut into uniform cells (at least 16 per knot interval,
+    at most ``MAX_TABLE_CELLS``), and every cell
+    stores the spline's own cubic (the piece at the cell's centre, re-expanded about the cell's start), so evaluating
+    is an index computation and a 4-coefficient gather: far cheaper on a CPU than a search over knots. Outside that
+    span the first/last pieces are exact single cubics. Only cells that contain a knot approximate (the neighbouring
+    pieces agree to second order there); ``tests/test_muscle.py`` bounds the error against the spline itself.
+    """
+
+    start: jnp.ndarray   # (S,) where the table starts (second knot)
+    inv_dx: jnp.ndarray  # (S,) 1 / cell width
+    c: jnp.ndarray       # (S, cells + 2, 4): [first piece, cells..., last piece], about each one's start
+    origin: jnp.ndarray  # (S, cells + 2) expansion point of each row
+
+
+MAX_TABLE_CELLS = 1 << 16
 
 
 class MuscleParams(NamedTuple):
@@ -83,35 +95,55 @@ class MuscleForces(NamedTuple):
 
 
 def natural_cubic_spline(xs: list[np.ndarray], ys: list[np.ndarray]) -> Spline:
-    """Pack natural cubic splines (one per muscle; knots may differ in number) into a :class:`Spline`.
+    """Tabulate natural cubic splines (one per muscle; identical curves are stored once) into a :class:`Spline`.
 
     Natural end conditions (zero second derivative) as in OpenSim's ``NaturalCubicSpline``; outside the knots the
     end cubic is continued, and every stored curve spans far beyond the physiological range.
     """
     from scipy.interpolate import CubicSpline
 
-    k = max(len(x) for x in xs)
-    xp = np.full((len(xs), k), 1e30)
-    cp = np.zeros((len(xs), k - 1, 4))
-    last = np.zeros(len(xs), np.int32)
-    for i, (x, y) in enumerate(zip(xs, ys)):
-        x, y = np.asarray(x, float), np.asarray(y, float)
+    curves = [(np.asarray(x, float), np.asarray(y, float)) for x, y in zip(xs, ys)]
+    if all(np.array_equal(cx, curves[0][0]) and np.array_equal(cy, curves[0][1]) for cx, cy in curves):
+        curves = curves[:1]
+    inner_gaps = [np.diff(x[1:-1]) for x, _ in curves]
+    n = int(min(MAX_TABLE_CELLS, max(16 * (x[-2] - x[1]) / g[g > 0].min() for (x, _), g in zip(curves, inner_gaps))))
+    start, dx = np.zeros(len(curves)), np.zeros(len(curves))
+    coef, origin = np.zeros((len(curves), n + 2, 4)), np.zeros((len(curves), n + 2))
+    for i, (x, y) in enumerate(curves):
         cs = CubicSpline(x, y, bc_type="natural")
-        n = len(x)
-        xp[i, :n] = x
-        cp[i, : n - 1] = cs.c.T
-        last[i] = n - 2
-    return Spline(jnp.asarray(xp, jnp.float32), jnp.asarray(cp, jnp.float32), jnp.asarray(last))
+        a, b = x[1], x[-2]
+        start[i], dx[i] = a, (b - a) / n
+        cell_start = a + dx[i] * np.arange(n)
+        centre = cell_start + dx[i] / 2
+        origin[i] = np.concatenate([[x[0]], cell_start, [x[-2]]])
+        # Taylor coefficients of the piece valid at each cell's centre, about the cell's start (exact for a cubic).
+        piece = np.clip(np.searchsorted(x, centre, side="right") - 1, 0, len(x) - 2)
+        pc = cs.c[:, piece].T                            # (n, 4) about x[piece]
+        coef[i, 1:-1] = _reexpand(pc, cell_start - x[piece])
+        coef[i, 0] = cs.c[:, 0]                          # first piece about x[0]
+        coef[i, -1] = cs.c[:, -1]                        # last piece about x[-2]
+    f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
+    return Spline(f32(start), f32(1 / dx), f32(coef), f32(origin))
+
+
+def _reexpand(c, shift):
+    """Coefficients (a, b, c, d) of a (h)^3 + b h^2 + c h + d re-expanded about h = shift."""
+    a, b, cc, d = c.T
+    return np.stack([a, 3 * a * shift + b, 3 * a * shift**2 + 2 * b * shift + cc,
+                     a * shift**3 + b * shift**2 + cc * shift + d], axis=1)
 
 
 def eval_spline(s: Spline, x):
     """Evaluate each muscle's spline at its own x (M,)."""
-    # Counting knots <= x beats a binary search at ~17 knots and vectorises over muscles without a loop.
-    idx = jnp.clip(jnp.sum(s.x <= x[:, None], axis=1) - 1, 0, s.last)
-    x0 = jnp.take_along_axis(s.x, idx[:, None], axis=1)[:, 0]
-    c = jnp.take_along_axis(s.c, idx[:, None, None], axis=1)[:, 0]
-    h = x - x0
-    return ((c[:, 0] * h + c[:, 1]) * h + c[:, 2]) * h + c[:, 3]
+    n = s.c.shape[1] - 2
+    row = jnp.clip(jnp.floor((x - s.start) * s.inv_dx).astype(jnp.int32) + 1, 0, n + 1)
+    if s.c.shape[0] == 1:
+        coef, origin = s.c[0][row], s.origin[0][row]
+    else:
+        coef = jnp.take_along_axis(s.c, row[:, None, None], axis=1)[:, 0]
+        origin = jnp.take_along_axis(s.origin, row[:, None], axis=1)[:, 0]
+    h = x - origin
+    return ((coef[:, 0] * h + coef[:, 1]) * h + coef[:, 2]) * h + coef[:, 3]
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -213,6 +245,14 @@ def fiber_velocity(p: MuscleParams, a, lm, lmt):
     ca, ft, fp, fa = _normalised_forces(p, lm, lmt)
     fv = jnp.maximum(ft / ca - fp, 0.0)
     return _inverse_force_velocity(a, fa, fv, p.damping) * p.optimal_fiber_length_m / p.time_scale_s
+
+
+def tendon_force(p: MuscleParams, lm, lmt):
+    """Force along each muscle-tendon path (N): the tendon's force at fibre length lm (m) and path length lmt (m)."""
+    lt = lmt - lm * cos_pennation(p, lm)
+    strain = (lt - p.tendon_slack_length_m) / p.tendon_slack_length_m
+    ft = jnp.where(strain >= 0.0, jnp.maximum(eval_spline(p.tendon_fl, jnp.maximum(strain, 0.0)), 0.0), 0.0)
+    return ft * p.max_force_n
 
 
 def forces(p: MuscleParams, state: MuscleState, lmt) -> MuscleForces:

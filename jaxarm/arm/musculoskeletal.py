@@ -122,7 +122,7 @@ class MusculoskeletalArm:
     def _substep(self, s: MusculoskeletalArmState, e, h) -> MusculoskeletalArmState:
         geo = self.geometry(s.q, s.qd)
         ms = mus.step(self.params, s.muscle, e, geo.mtu_length_m, h)
-        tendon = mus.forces(self.params, ms, geo.mtu_length_m).tendon_force_n
+        tendon = mus.tendon_force(self.params, ms.fiber_length_m, geo.mtu_length_m)
         spring, damping = self.joint_limit_torque(s.q, s.qd)
         tau = geo.moment_arm_m.T @ tendon + spring - geo.bias_nm
         # (M + h B) qd' = M qd + h tau: implicit limit damping B = diag(damping).
