@@ -1,0 +1,145 @@
+"""Static configuration of the cortical spiking network (spec §1-§3). Times in ms, lengths in m.
+
+Everything here is hashable and fixed at trace time (sizes, the time step, capacities, which variant of the
+original to run). Values the authors tuned by evolution are traced arrays and live in
+:class:`jaxarm.network.network.NetworkParams`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from jaxarm.config.validate import ConfigError, check_choice, check_interval, check_range
+
+#: Population names in the order of the original's global cell ids (col.hoc mkcells, spec §2).
+POPULATIONS = ("ES", "IS", "ISL", "EM", "IM", "IML", "P")
+
+
+def _is_multiple(x: float, step: float) -> bool:
+    n = round(x / step)
+    return n >= 1 and abs(n * step - x) <= 1e-9 * max(1.0, x)
+
+
+@dataclass(frozen=True)
+class NetworkConfig:
+    """Static structure of one network.
+
+    Attributes:
+        dt_ms: clock step, ms. Must divide 1 ms and ``interface_ms`` exactly. The default was chosen by measurement
+            (README, "Network"): per-population rates within 10 % of a dt = 0.1 ms run.
+        interface_ms: period of the closed loop (readout, arm step, P update), ms (the original's aDT = 10).
+        sizes: (ES, IS, ISL, EM, IM, IML, P) population sizes (original: scale 4).
+        pmat_scale: in-degree = int(0.5 + pmat * pmat_scale * N_pre) (the original's 0.75 * 6 / scale = 1.125).
+        self_connections: "code" lets a cell draw itself as presynaptic partner, as the original did by accident
+            (uninitialised ``prid``, spec §2); "exclude" forbids it (ModelDB 150245's fix).
+        p_tuning: "code": each P cell fires for lengths in a window 3 steps wide (12.5 mm); "paper": 2 steps (8.33 mm),
+            same centres. Step = (max - min) / cells per group = 4.17 mm either way.
+        p_length_range_m: (min, max) muscle length covered by the P code, m.
+        p_rate_hz: rate of an active P cell (regular train), Hz.
+        p_start_ms: every P cell fires once at this time (NSLOC ``start``), ms.
+        readout_clip: clip the motor excitation to [0, 1] (the paper's "thresholded linear" readout). The hoc
+            code does not clip (spec §3, §11.7); False reproduces it.
+        readout_bins: length of the EM spike-count history, in interface periods; must cover the readout window
+            plus its lag (default 76.08 + 50 ms).
+        spike_capacity: spike-list length per step (lax.top_k). Spikes beyond it in one step are delivered by
+            further passes of the same list in that step (exact); each extra pass is counted in
+            ``State.counters.extra_passes`` and a pass limit (``max_passes``) bounds the work.
+        max_passes: most spike-list passes per step; spikes still left after them are lost and counted in
+            ``State.counters.lost_spikes`` (a test fails if any are).
+        out_capacity: out-degree capacity of the per-presynaptic-cell delivery lists; 0 = derive a bound from the
+            sizes (mean + 8 sd). Synapses beyond it are counted in ``Wiring.out_overflow``.
+        noise_max_rate_hz: highest background rate the Poisson noise tables must represent, Hz (sets how many
+            events per step per receptor are representable, see ``noise_kmax``).
+        plasticity_bookkeeping: keep each cell's last spike time and tag plastic synapses on postsynaptic spikes
+            (``pdope``), for reward-modulated STDP.
+    """
+
+    dt_ms: float = 0.5
+    interface_ms: float = 10.0
+    sizes: tuple[int, int, int, int, int, int, int] = (192, 44, 20, 192, 44, 20, 192)
+    pmat_scale: float = 1.125
+    self_connections: str = "code"
+    p_tuning: str = "code"
+    p_length_range_m: tuple[float, float] = (0.03, 0.23)
+    p_rate_hz: float = 100.0
+    p_start_ms: float = 1.0
+    readout_clip: bool = True
+    readout_bins: int = 16
+    spike_capacity: int = 8
+    max_passes: int = 64
+    out_capacity: int = 0
+    noise_max_rate_hz: float = 250.0
+    plasticity_bookkeeping: bool = True
+
+    def __post_init__(self):
+        check_range(self, "dt_ms", 0.01, 1.0)
+        if not _is_multiple(1.0, self.dt_ms):
+            raise ConfigError(f"NetworkConfig.dt_ms = {self.dt_ms!r}: must divide 1 ms exactly (e.g. 0.1, 0.25, 0.5, 1)")
+        check_range(self, "interface_ms", 1.0, 1000.0)
+        if not _is_multiple(self.interface_ms, 1.0):
+            raise ConfigError(f"NetworkConfig.interface_ms = {self.interface_ms!r}: must be a whole number of ms")
+        if (not isinstance(self.sizes, tuple) or len(self.sizes) != len(POPULATIONS)
+                or not all(isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 100_000 for n in self.sizes)):
+            raise ConfigError(f"NetworkConfig.sizes = {self.sizes!r}: a tuple of {len(POPULATIONS)} integers in "
+                              f"[1, 100000], in the order {POPULATIONS}")
+        for name in ("EM", "P"):
+            n = self.sizes[POPULATIONS.index(name)]
+            if n % 4:
+                raise ConfigError(f"NetworkConfig.sizes = {self.sizes!r}: {name} size {n} must be a multiple of 4 "
+                                  "(four muscle groups, id % 4)")
+        check_range(self, "pmat_scale", 0.0, 100.0, lo_open=True)
+        check_choice(self, "self_connections", ("code", "exclude"))
+        check_choice(self, "p_tuning", ("code", "paper"))
+        check_interval(self, "p_length_range_m", 0.0, 10.0)
+        check_range(self, "p_rate_hz", 1.0, 1000.0)
+        check_range(self, "p_start_ms", 0.0, 1000.0)
+        if not _is_multiple(self.p_start_ms, self.dt_ms) and self.p_start_ms != 0.0:
+            raise ConfigError(f"NetworkConfig.p_start_ms = {self.p_start_ms!r}: must be a multiple of dt_ms = {self.dt_ms}")
+        if not isinstance(self.readout_clip, bool):
+            raise ConfigError(f"NetworkConfig.readout_clip = {self.readout_clip!r}: must be True or False")
+        check_range(self, "readout_bins", 2, 1000, integer=True)
+        check_range(self, "spike_capacity", 1, 4096, integer=True)
+        check_range(self, "max_passes", 1, 4096, integer=True)
+        check_range(self, "out_capacity", 0, 1_000_000, integer=True)
+        check_range(self, "noise_max_rate_hz", 0.0, 5000.0, lo_open=True)
+        if not isinstance(self.plasticity_bookkeeping, bool):
+            raise ConfigError(f"NetworkConfig.plasticity_bookkeeping = {self.plasticity_bookkeeping!r}: "
+                              "must be True or False")
+
+    # ----- derived static quantities -----
+    def size(self, pop: str) -> int:
+        return self.sizes[POPULATIONS.index(pop)]
+
+    @property
+    def n_cells(self) -> int:
+        """Network (INTF6) cells: every population but P."""
+        return sum(self.sizes[:-1])
+
+    @property
+    def n_p(self) -> int:
+        return self.sizes[-1]
+
+    @property
+    def n_all(self) -> int:
+        """All cells with a global id (network cells, then P generators)."""
+        return sum(self.sizes)
+
+    def steps(self, ms: float) -> int:
+        """Whole steps in ``ms`` (rounded to the nearest step)."""
+        return int(round(ms / self.dt_ms))
+
+    @property
+    def steps_per_interface(self) -> int:
+        return self.steps(self.interface_ms)
+
+    @property
+    def noise_kmax(self) -> int:
+        """Most Poisson noise events per step per receptor that the noise tables represent: the smallest k with
+        P(N > k) < 2**-24 (the resolution of the 32-bit uniform draws, compared in float32) at the highest rate."""
+        lam = self.noise_max_rate_hz * self.dt_ms / 1000.0
+        term, cdf, k = math.exp(-lam), math.exp(-lam), 0
+        while 1.0 - cdf >= 2.0 ** -24 and k < 64:
+            k += 1
+            term *= lam / k
+            cdf += term
+        return max(k, 1)

@@ -1,0 +1,14 @@
+"""The cortical spiking network of Dura-Bernal et al. 2015 (spec §1-§3), clock-driven and vectorised.
+
+Modules: :mod:`populations` (sizes, ids, muscle groups), :mod:`wiring` (fixed in-degree wiring in per-post-cell
+layout), :mod:`cell` (the INTF6 port), :mod:`noise` (background Poisson input), :mod:`synapses` (ring-buffer spike
+delivery), :mod:`proprio` (P population code), :mod:`readout` (EM motor readout), :mod:`network` (State, init,
+step, run). Units: ms and mV; muscle lengths in m.
+"""
+from jaxarm.config.network import NetworkConfig
+from jaxarm.network.network import MAX_PLAST_T_MS, Network, NetworkParams, State
+from jaxarm.network.populations import Populations
+from jaxarm.network.wiring import PATHWAYS, Wiring, WiringLayout, in_degree_table, make_wiring
+
+__all__ = ["NetworkConfig", "Network", "NetworkParams", "State", "MAX_PLAST_T_MS", "Populations", "PATHWAYS",
+           "Wiring", "WiringLayout", "in_degree_table", "make_wiring"]

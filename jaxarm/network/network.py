@@ -1,0 +1,219 @@
+"""The network as pure functions: ``init``, ``step``, ``run`` over a :class:`State` pytree (one network; ``vmap`` for many).
+
+Usage::
+
+    net = Network(NetworkConfig())
+    wiring = net.make_wiring(jax.random.key(0))          # or vmap over keys: one wiring per network
+    state = net.init(jax.random.key(1))
+    state = net.set_lengths(state, lengths_m)            # every 10 ms, from the arm (m)
+    state, spikes = net.run(wiring, state, params, net.config.steps_per_interface)   # spikes (n_steps, n_all) bool
+
+Units: ms and mV inside; muscle lengths in m at :meth:`Network.set_lengths`.
+
+State layout (every field may carry leading batch axes under ``vmap``):
+
+* ``step``: () int32 clock steps since the start of the run; the time is ``step * dt_ms``.
+* ``cells``: :class:`~jaxarm.network.cell.CellState`, (n_cells,) arrays for the 512 INTF6 cells (ids 0..511).
+* ``p``: :class:`~jaxarm.network.proprio.PState` of the 192 P generators (ids 512..703).
+* ``noise``: :class:`~jaxarm.network.noise.NoiseState` (seeds and the Poisson tables of the current rates).
+* ``ring``: the synaptic input ring buffer (:mod:`jaxarm.network.synapses`).
+* ``wgain``: (n_syn,) float32 gain of every synapse on its AMPA/GABA base weight (1 at start). Per-post-cell layout:
+  ``WiringLayout.view(state.wgain, "ES->EM")`` is the (n_post, in_degree) block of a pathway, matching
+  ``wiring.pre`` viewed the same way. Persists across runs (epochs); the learning rule and synaptic scaling
+  update it with array ops.
+* ``pdope_ms``: (n_plastic,) float32 tag time of every plastic synapse (synapse k < n_plastic; -1e9 = untagged),
+  ms since the start of the run. Written on postsynaptic spikes when ``plasticity_bookkeeping`` is on.
+* ``last_spike_ms``: (n_all,) float32 last spike time of every cell in this run, ms (-1e9 = none).
+* ``spike_count``: (n_all,) int32 spikes of every cell since the start of the run.
+* ``counters``: :class:`~jaxarm.network.synapses.Counters` (extra spike-list passes, lost spikes).
+
+``step`` returns the spikes of every cell in that step ((n_all,) bool, global id order) so a 10 ms interface can
+count EM spikes per group (:func:`jaxarm.network.readout.em_group_counts`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.config.network import NetworkConfig
+from jaxarm.network import cell as cell_mod
+from jaxarm.network import noise as noise_mod
+from jaxarm.network import proprio as proprio_mod
+from jaxarm.network import synapses as syn_mod
+from jaxarm.network.populations import Populations
+from jaxarm.network.wiring import Wiring, WiringLayout, make_wiring
+
+#: Pre-before-post pairing window of tagging, ms (maxplastt, main.hoc L46).
+MAX_PLAST_T_MS = 69.57
+
+
+class NetworkParams(NamedTuple):
+    """Traced values the network step uses (scalars, or batched under ``vmap``)."""
+
+    max_plast_t_ms: jnp.ndarray  # tagging window, ms
+
+    @classmethod
+    def original(cls) -> "NetworkParams":
+        return cls(max_plast_t_ms=jnp.asarray(MAX_PLAST_T_MS, jnp.float32))
+
+
+class State(NamedTuple):
+    step: jnp.ndarray
+    cells: cell_mod.CellState
+    p: proprio_mod.PState
+    noise: noise_mod.NoiseState
+    ring: jnp.ndarray
+    wgain: jnp.ndarray
+    pdope_ms: jnp.ndarray
+    last_spike_ms: jnp.ndarray
+    spike_count: jnp.ndarray
+    counters: syn_mod.Counters
+
+
+@dataclass(frozen=True)
+class Network:
+    """Pure functions of one network configuration (hashable: safe as a static argument)."""
+
+    config: NetworkConfig = field(default_factory=NetworkConfig)
+
+    @cached_property
+    def layout(self) -> WiringLayout:
+        return WiringLayout(self.config)
+
+    @cached_property
+    def pops(self) -> Populations:
+        return Populations(self.config)
+
+    @cached_property
+    def cell_constants(self) -> cell_mod.CellConstants:
+        return cell_mod.cell_constants(self.config)
+
+    @cached_property
+    def noise_weights(self) -> np.ndarray:
+        return noise_mod.noise_weights(self.config)
+
+    @cached_property
+    def chunk_steps(self) -> int:
+        """Steps per chunk of :meth:`run` (one interface period): P input is written once per chunk."""
+        return self.config.steps_per_interface
+
+    @cached_property
+    def p_delay_steps(self) -> int:
+        return self.config.steps(self.layout.pathway("P->ES").delay_ms[1])
+
+    @cached_property
+    def n_slots(self) -> int:
+        """Ring-buffer slots: enough for the longest delay (5 ms) and for a chunk of P input plus its delay."""
+        return max(self.config.steps(5.0) + 1, self.chunk_steps + self.p_delay_steps)
+
+    @cached_property
+    def p_synapses(self) -> slice:
+        start = self.layout.offset["P->ES"]
+        return slice(start, start + self.config.size("ES") * self.layout.in_degree["P->ES"])
+
+    def make_wiring(self, key) -> Wiring:
+        return make_wiring(self.config, key)
+
+    def init(self, key, wgain=None, em_rates_hz=None) -> State:
+        """Fresh run: cells at rest, no spikes, no tags, step 0. ``key`` seeds the background noise; ``wgain``
+        (n_syn,) carries learned gains over from a previous run (default all 1); ``em_rates_hz`` (4,) the EM AMPA
+        noise per group (default 200 Hz)."""
+        c, lay = self.config, self.layout
+        return State(
+            step=jnp.zeros((), jnp.int32),
+            cells=cell_mod.init_cells(c.n_cells),
+            p=proprio_mod.init_p(c),
+            noise=noise_mod.init_noise(c, key, em_rates_hz),
+            ring=jnp.zeros((syn_mod.ring_size(self.n_slots, c.n_cells),), jnp.float32),
+            wgain=jnp.ones((lay.n_syn,), jnp.float32) if wgain is None else jnp.asarray(wgain, jnp.float32),
+            pdope_ms=jnp.full((lay.n_plastic if c.plasticity_bookkeeping else 0,), syn_mod.NO_TAG_MS, jnp.float32),
+            last_spike_ms=jnp.full((c.n_all,), syn_mod.NEVER_SPIKED_MS, jnp.float32),
+            spike_count=jnp.zeros((c.n_all,), jnp.int32),
+            counters=syn_mod.Counters(jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32)),
+        )
+
+    def set_lengths(self, state: State, lengths_m) -> State:
+        """New muscle lengths (4,) in m (GROUPS order) for the P code, from now on."""
+        return state._replace(p=proprio_mod.set_lengths(self.config, state.p, lengths_m, state.step))
+
+    def set_em_rates(self, state: State, em_rates_hz) -> State:
+        """EM AMPA background rate per muscle group (4,), Hz, from now on."""
+        return state._replace(noise=noise_mod.set_em_rates(self.config, state.noise, em_rates_hz))
+
+    def time_ms(self, state: State):
+        return state.step.astype(jnp.float32) * self.config.dt_ms
+
+    def _network_step(self, wiring: Wiring, state: State, params: NetworkParams):
+        """One clock step of the network cells (P input is already in the ring). Returns (state, spikes (n_all,))."""
+        c = self.config
+        n = c.n_cells
+        m = state.step + 1
+        t_ms = m.astype(jnp.float32) * c.dt_ms
+
+        syn_in, ring = syn_mod.read_slot(state.ring, m, self.n_slots, n)
+        counts = noise_mod.noise_counts(state.noise, m)
+        drive = counts * self.noise_weights  # (3, n): AMPA, GABA-prox, GABA-dist
+        cells, net_spiked = cell_mod.cell_step(
+            state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
+            self.cell_constants)
+        p, p_spiked = proprio_mod.p_step(state.p, m)
+        spiked = jnp.concatenate([net_spiked, p_spiked])
+
+        last_spike_ms = jnp.where(spiked, t_ms, state.last_spike_ms)
+        ring, pdope_ms, counters = syn_mod.deliver_spikes(
+            ring, state.pdope_ms, state.counters, net_spiked, m, t_ms, last_spike_ms, wiring, state.wgain,
+            params.max_plast_t_ms, capacity=c.spike_capacity, max_passes=c.max_passes, n_slots=self.n_slots,
+            n_cells=n, bookkeeping=c.plasticity_bookkeeping)
+        new = State(step=m, cells=cells, p=p, noise=state.noise, ring=ring, wgain=state.wgain, pdope_ms=pdope_ms,
+                    last_spike_ms=last_spike_ms, spike_count=state.spike_count + spiked.astype(jnp.int32),
+                    counters=counters)
+        return new, spiked
+
+    def _chunk(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
+        """Write the P input of the next ``n_steps`` (<= chunk_steps) steps, then scan the network steps."""
+        min_interval = self.config.steps(1000.0 / self.config.p_rate_hz)
+        ring = syn_mod.deliver_p_window(
+            state.ring, state.p.next_step, state.p.interval_steps, state.step, n_steps, wiring, state.wgain,
+            self.p_synapses, self.pops.start["P"], proprio_mod.NEVER_STEPS, max_spikes=n_steps // min_interval + 1,
+            n_slots=self.n_slots, n_cells=self.config.n_cells)
+        state = state._replace(ring=ring)
+
+        def body(s, _):
+            s, spiked = self._network_step(wiring, s, params)
+            return s, (spiked if collect else None)
+
+        return jax.lax.scan(body, state, None, length=n_steps)
+
+    def step(self, wiring: Wiring, state: State, params: NetworkParams):
+        """Advance one clock step. Returns (state, spikes (n_all,) bool of this step). :meth:`run` is faster for
+        many steps (it writes P input once per chunk instead of once per step)."""
+        state, spiked = self._chunk(wiring, state, params, 1, True)
+        return state, spiked[0]
+
+    def run(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool = True):
+        """``n_steps`` steps (static) by ``lax.scan`` in chunks of :attr:`chunk_steps`.
+
+        Returns (state, spikes (n_steps, n_all) bool), or (state, None) with ``collect=False``. Muscle lengths
+        (:meth:`set_lengths`) and noise rates stay fixed for the whole call.
+        """
+        full, rest = divmod(n_steps, self.chunk_steps)
+        outs = []
+        if full:
+            def chunk(s, _):
+                return self._chunk(wiring, s, params, self.chunk_steps, collect)
+
+            state, spikes = jax.lax.scan(chunk, state, None, length=full)
+            if collect:
+                outs.append(spikes.reshape((-1,) + spikes.shape[2:]))
+        if rest:
+            state, spikes = self._chunk(wiring, state, params, rest, collect)
+            if collect:
+                outs.append(spikes)
+        if not collect:
+            return state, None
+        return state, outs[0] if len(outs) == 1 else jnp.concatenate(outs)

@@ -1,0 +1,74 @@
+"""Populations, global cell ids, cell types and muscle groups, exactly as the original numbers them (spec §2).
+
+Global ids follow the order of creation in ``col.hoc``: ES 0-191, IS 192-235, ISL 236-255, EM 256-447, IM 448-491,
+IML 492-511 (the 512 INTF6 "network" cells), then the proprioceptive generators P 512-703.
+
+Muscle groups (0 shoulder extensors, 1 shoulder flexors, 2 elbow extensors, 3 elbow flexors): an EM cell's group is
+its **global id** % 4 (msarm.hoc L266); a P cell's group is its index within P % 4 and its tuning index is
+index // 4 (msarm.hoc assignDP). With the original sizes both rules equal global id % 4 (256 and 512 are multiples
+of 4), so the 48 cells of a group are interleaved.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from jaxarm.config.network import POPULATIONS, NetworkConfig
+
+N_GROUPS = 4
+#: INTF6 parameter set of each population (spec §1): "E" regular spiking, "FS" fast spiking, "LTS" low-threshold.
+CELL_TYPE = {"ES": "E", "IS": "FS", "ISL": "LTS", "EM": "E", "IM": "FS", "IML": "LTS"}
+NETWORK_POPULATIONS = POPULATIONS[:-1]
+
+
+@dataclass(frozen=True)
+class Populations:
+    """Id ranges of one configuration: ``start[pop]`` .. ``stop[pop]`` (exclusive), as Python ints."""
+
+    config: NetworkConfig
+
+    @property
+    def start(self) -> dict[str, int]:
+        starts, s = {}, 0
+        for name, n in zip(POPULATIONS, self.config.sizes):
+            starts[name] = s
+            s += n
+        return starts
+
+    @property
+    def stop(self) -> dict[str, int]:
+        return {name: self.start[name] + self.config.size(name) for name in POPULATIONS}
+
+    def ids(self, pop: str) -> np.ndarray:
+        return np.arange(self.start[pop], self.stop[pop])
+
+    def slice(self, pop: str) -> slice:
+        return slice(self.start[pop], self.stop[pop])
+
+    def population_of(self) -> np.ndarray:
+        """(n_all,) int: index into POPULATIONS of every global id."""
+        return np.repeat(np.arange(len(POPULATIONS)), self.config.sizes)
+
+    def em_groups(self) -> np.ndarray:
+        """(n_EM,) muscle group of each EM cell: global id % 4."""
+        return self.ids("EM") % N_GROUPS
+
+    def p_groups(self) -> np.ndarray:
+        """(n_P,) muscle group of each P cell: index % 4."""
+        return np.arange(self.config.n_p) % N_GROUPS
+
+    def p_tuning_index(self) -> np.ndarray:
+        """(n_P,) position of each P cell along its group's length axis: index // 4."""
+        return np.arange(self.config.n_p) // N_GROUPS
+
+    def cell_type_of_network_cells(self) -> np.ndarray:
+        """(n_cells,) str: "E", "FS" or "LTS" of each network cell."""
+        return np.concatenate([[CELL_TYPE[p]] * self.config.size(p) for p in NETWORK_POPULATIONS])
+
+    def population_rates_hz(self, spike_counts, duration_ms: float) -> dict[str, float]:
+        """Mean rate of every population, Hz, from per-cell spike counts ``(..., n_all)`` over ``duration_ms``
+        (averaged over any leading axes, e.g. networks)."""
+        counts = np.asarray(spike_counts, dtype=np.float64)
+        counts = counts.reshape(-1, counts.shape[-1])
+        return {p: float(counts[:, self.slice(p)].mean() * 1000.0 / duration_ms) for p in POPULATIONS}

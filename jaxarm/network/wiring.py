@@ -1,0 +1,292 @@
+"""Fixed in-degree wiring, drawn from a key and stored the way it is made: per postsynaptic cell (spec §2).
+
+For every pathway pre -> post each postsynaptic cell draws exactly ``in_degree = int(0.5 + pmat * pmat_scale * N_pre)``
+distinct presynaptic partners uniformly (``convwire``; with ``self_connections="code"`` a cell may draw itself, as
+in the original). Delays are uniform in [3, 5] ms from E and LTS cells (distal), [1.8, 2.2] ms from FS cells
+(somatic), and 1 ms from P; they are rounded to the clock step.
+
+Layout (``Wiring``, every array may carry leading batch axes under ``vmap``):
+
+* Synapses are numbered pathway by pathway in :data:`PATHWAYS` order, and inside a pathway post-cell major:
+  synapse ``offset + i * in_degree + j`` is the j-th input of the i-th cell of the post population. So for any
+  per-synapse array ``a`` of shape (n_syn,), ``layout.view(a, "ES->EM")`` is the (n_post, in_degree) per-post-cell
+  block of that pathway (no copy semantics needed: a static slice and reshape). The eight plastic pathways come
+  first, so plastic synapse k (0 <= k < n_plastic) is synapse k.
+* ``pre``/``post``: global ids; ``delay_steps``; ``weight``: the AMPA (E presyn) or GABA (I presyn) base weight in mV,
+  which ``wgain`` multiplies; ``nmda``: the NMDA base weight (0.1 x AMPA, not scaled by ``wgain``; 0 for GABA);
+  ``target``: flat index ``channel * n_cells + post`` into one ring-buffer slot (channels: 0 AMPA-distal,
+  1 NMDA-distal, 2 GABA-proximal, 3 GABA-distal); ``packed``: ``target << 10 | delay_steps`` (one gather fetches
+  both on the hot path).
+* ``out_syn``: (n_cells + 1, out_capacity) synapse ids of every network cell (its delivery list), padded with the
+  dummy synapse ``n_syn`` (zero weight). Row n_cells belongs to a dummy cell with no synapses. P -> ES synapses are
+  not in these lists: P trains are known in advance and are delivered once per chunk of steps
+  (:func:`jaxarm.network.synapses.deliver_p_window`).
+* ``in_plastic``: (n_cells + 1, max plastic in-degree) plastic synapse ids onto every network cell, padded with
+  ``n_plastic``; ``in_plastic_pre``: their presynaptic global ids, padded with n_all (a cell that never fires).
+  Used for tagging on spikes.
+* ``out_overflow``: synapses that did not fit ``out_capacity`` (must be 0; counted, never silent).
+
+Weights are the spec's table (base wmat x pathway gain, spec §2); NMDA = NMAMR (0.1) x AMPA.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property, partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.config.network import POPULATIONS, NetworkConfig
+from jaxarm.network.populations import CELL_TYPE, Populations
+
+#: Receptor channels of the per-cell synaptic input rows.
+AMPA, NMDA, GABA_PROX, GABA_DIST = 0, 1, 2, 3
+N_CHANNELS = 4
+NMDA_AMPA_RATIO = 0.1  # NMAMR (spec §2)
+DELAY_BITS = 10
+
+
+@dataclass(frozen=True)
+class Pathway:
+    pre: str
+    post: str
+    pmat: float        # raw connection density (spec §2 table)
+    weight: float      # AMPA weight (E presyn) or GABA weight (I presyn), mV
+    delay_ms: tuple[float, float]
+    plastic: bool
+
+    @property
+    def name(self) -> str:
+        return f"{self.pre}->{self.post}"
+
+    @property
+    def presyn_type(self) -> str:
+        return "E" if self.pre == "P" else CELL_TYPE[self.pre]
+
+    @property
+    def channel(self) -> int:
+        return {"E": AMPA, "FS": GABA_PROX, "LTS": GABA_DIST}[self.presyn_type]
+
+    @property
+    def nmda_weight(self) -> float:
+        return NMDA_AMPA_RATIO * self.weight if self.presyn_type == "E" else 0.0
+
+
+_DISTAL = (3.0, 5.0)
+_SOMA = (1.8, 2.2)
+#: Every pathway of the original (spec §2 table), plastic ones first. EM -> IS/ISL is absent (EMISFeedBack = 0).
+PATHWAYS: tuple[Pathway, ...] = (
+    Pathway("ES", "ES", 0.05, 1.98, _DISTAL, True),
+    Pathway("ES", "IS", 0.43, 1.15, _DISTAL, True),
+    Pathway("ES", "ISL", 0.51, 0.575, _DISTAL, True),
+    Pathway("ES", "EM", 0.30, 2.64, _DISTAL, True),
+    Pathway("EM", "EM", 0.05, 1.782, _DISTAL, True),
+    Pathway("EM", "IM", 0.43, 1.15, _DISTAL, True),
+    Pathway("EM", "IML", 0.51, 0.575, _DISTAL, True),
+    Pathway("EM", "ES", 0.01, 0.72, _DISTAL, True),
+    Pathway("ES", "IM", 0.05, 1.15, _DISTAL, False),
+    Pathway("ES", "IML", 0.05, 0.575, _DISTAL, False),
+    Pathway("IS", "ES", 0.44, 4.5, _SOMA, False),
+    Pathway("IS", "IS", 0.62, 4.5, _SOMA, False),
+    Pathway("IS", "ISL", 0.34, 4.5, _SOMA, False),
+    Pathway("ISL", "ES", 0.35, 1.245, _DISTAL, False),
+    Pathway("ISL", "IS", 0.53, 2.25, _DISTAL, False),
+    Pathway("ISL", "ISL", 0.09, 4.5, _DISTAL, False),
+    Pathway("IM", "EM", 0.44, 9.0, _SOMA, False),
+    Pathway("IM", "IM", 0.62, 4.5, _SOMA, False),
+    Pathway("IM", "IML", 0.34, 4.5, _SOMA, False),
+    Pathway("IML", "EM", 0.35, 2.49, _DISTAL, False),
+    Pathway("IML", "IM", 0.53, 2.25, _DISTAL, False),
+    Pathway("IML", "IML", 0.09, 4.5, _DISTAL, False),
+    Pathway("P", "ES", 0.1, 4.0, (1.0, 1.0), False),
+)
+
+
+class Wiring(NamedTuple):
+    """One network's synapses (see module docstring for the layout). Integer arrays are int32."""
+
+    pre: jnp.ndarray            # (n_syn + 1,) global id of the presynaptic cell (dummy synapse: n_all)
+    post: jnp.ndarray           # (n_syn + 1,) global id of the postsynaptic cell (dummy: 0)
+    delay_steps: jnp.ndarray    # (n_syn + 1,) delay in clock steps (>= 1)
+    weight: jnp.ndarray         # (n_syn + 1,) AMPA or GABA base weight, mV (dummy: 0)
+    nmda: jnp.ndarray           # (n_syn + 1,) NMDA base weight, mV
+    target: jnp.ndarray         # (n_syn + 1,) channel * n_cells + post
+    packed: jnp.ndarray         # (n_syn + 1,) target << 10 | delay_steps
+    out_syn: jnp.ndarray        # (n_cells + 1, out_capacity) delivery lists of the network cells
+    in_plastic: jnp.ndarray     # (n_cells + 1, max_in_plastic) plastic synapse ids per postsynaptic cell
+    in_plastic_pre: jnp.ndarray  # (n_cells + 1, max_in_plastic) their presynaptic ids
+    out_overflow: jnp.ndarray   # () synapses left out of out_syn
+
+
+@dataclass(frozen=True)
+class WiringLayout:
+    """Static shape of the wiring for a configuration (Python ints only; hashable)."""
+
+    config: NetworkConfig
+
+    @cached_property
+    def pops(self) -> Populations:
+        return Populations(self.config)
+
+    @cached_property
+    def in_degree(self) -> dict[str, int]:
+        c = self.config
+        return {pw.name: int(0.5 + pw.pmat * c.pmat_scale * c.size(pw.pre)) for pw in PATHWAYS}
+
+    @cached_property
+    def offset(self) -> dict[str, int]:
+        out, s = {}, 0
+        for pw in PATHWAYS:
+            out[pw.name] = s
+            s += self.config.size(pw.post) * self.in_degree[pw.name]
+        return out
+
+    @cached_property
+    def n_syn(self) -> int:
+        last = PATHWAYS[-1]
+        return self.offset[last.name] + self.config.size(last.post) * self.in_degree[last.name]
+
+    @cached_property
+    def n_plastic(self) -> int:
+        return sum(self.config.size(pw.post) * self.in_degree[pw.name] for pw in PATHWAYS if pw.plastic)
+
+    @cached_property
+    def n_network_syn(self) -> int:
+        """Synapses between network cells (everything but P -> ES)."""
+        return sum(self.config.size(pw.post) * self.in_degree[pw.name] for pw in PATHWAYS if pw.pre != "P")
+
+    def pathway(self, name: str) -> Pathway:
+        for pw in PATHWAYS:
+            if pw.name == name:
+                return pw
+        raise KeyError(f"no pathway {name!r}; known: {', '.join(p.name for p in PATHWAYS)}")
+
+    def view(self, per_synapse, name: str):
+        """The (..., n_post, in_degree) block of pathway ``name`` of a per-synapse array (..., n_syn[+1])."""
+        pw = self.pathway(name)
+        n_post, k = self.config.size(pw.post), self.in_degree[name]
+        a = per_synapse[..., self.offset[name]:self.offset[name] + n_post * k]
+        return a.reshape(a.shape[:-1] + (n_post, k))
+
+    def pathway_of_synapse(self) -> np.ndarray:
+        """(n_syn,) index into PATHWAYS of every synapse."""
+        return np.repeat(np.arange(len(PATHWAYS)),
+                         [self.config.size(pw.post) * self.in_degree[pw.name] for pw in PATHWAYS])
+
+    @cached_property
+    def out_capacity(self) -> int:
+        """Delivery-list length: ``config.out_capacity`` or mean + 6 sd of the largest expected out-degree of a
+        network cell (out-degrees are sums of independent draws, so exceeding this has probability ~1e-9 per cell;
+        it is counted in ``Wiring.out_overflow`` if it happens)."""
+        if self.config.out_capacity:
+            return self.config.out_capacity
+        worst = 0.0
+        for pre in POPULATIONS[:-1]:
+            mean = sum(self.config.size(pw.post) * self.in_degree[pw.name] / self.config.size(pre)
+                       for pw in PATHWAYS if pw.pre == pre)
+            worst = max(worst, mean + 6.0 * math.sqrt(max(mean, 1.0)))
+        return int(math.ceil(worst))
+
+    @cached_property
+    def _plastic_inputs(self) -> tuple[np.ndarray, int]:
+        """Static (n_cells + 1, width) table of plastic synapse ids per postsynaptic cell (the draw only fills in
+        which presynaptic cell each one has)."""
+        rows: list[list[int]] = [[] for _ in range(self.config.n_cells + 1)]
+        for pw in PATHWAYS:
+            if not pw.plastic:
+                continue
+            k, start = self.in_degree[pw.name], self.pops.start[pw.post]
+            for i in range(self.config.size(pw.post)):
+                base = self.offset[pw.name] + i * k
+                rows[start + i].extend(range(base, base + k))
+        width = max(1, max(len(r) for r in rows))
+        table = np.full((len(rows), width), self.n_plastic, dtype=np.int32)
+        for i, r in enumerate(rows):
+            table[i, :len(r)] = r
+        return table, width
+
+
+def make_wiring(config: NetworkConfig, key) -> Wiring:
+    """Draw one network's wiring from ``key`` (pure; ``vmap`` over keys gives one wiring per network)."""
+    return _make_wiring_jit(config, key)
+
+
+@partial(jax.jit, static_argnums=0)
+def _make_wiring_jit(config: NetworkConfig, key) -> Wiring:
+    layout = WiringLayout(config)
+    pops = layout.pops
+    dt = config.dt_ms
+    pres, posts, delays, weights, nmdas, targets = [], [], [], [], [], []
+    # Two draws and one top_k for everything (threefry and sorts compile slowly on CPU, so not one per pathway):
+    # every (pathway, post cell) row gets uniform keys for its candidate partners and keeps the k largest, which is
+    # k distinct partners drawn uniformly; every synapse gets a uniform delay.
+    pools = [config.size(pw.pre) - (pw.pre == pw.post and config.self_connections == "exclude") for pw in PATHWAYS]
+    for pw, pool in zip(PATHWAYS, pools):
+        if layout.in_degree[pw.name] > pool:
+            raise ValueError(f"pathway {pw.name}: in-degree {layout.in_degree[pw.name]} exceeds the {pool} "
+                             "available presynaptic cells")
+    width, k_max = max(pools), max(layout.in_degree.values())
+    rows = np.concatenate([[0], np.cumsum([config.size(pw.post) for pw in PATHWAYS])])
+    valid = np.zeros((rows[-1], width), bool)
+    for index, pool in enumerate(pools):
+        valid[rows[index]:rows[index + 1], :pool] = True
+    k_pre, k_delay = jax.random.split(key)
+    keys = jnp.where(valid, jax.random.uniform(k_pre, valid.shape), -1.0)
+    chosen = jax.lax.top_k(keys, k_max)[1]
+    delay_u = jax.random.uniform(k_delay, (layout.n_syn,))
+    for index, (pw, pool) in enumerate(zip(PATHWAYS, pools)):
+        n_post, k = config.size(pw.post), layout.in_degree[pw.name]
+        local = chosen[rows[index]:rows[index + 1], :k]
+        if pool < config.size(pw.pre):  # self excluded: candidate c >= own index stands for c + 1
+            local = local + (local >= jnp.arange(n_post)[:, None])
+        pre = (local + pops.start[pw.pre]).astype(jnp.int32).reshape(-1)
+        post = jnp.asarray(np.repeat(np.arange(n_post, dtype=np.int32) + pops.start[pw.post], k))
+        lo, hi = pw.delay_ms
+        off = layout.offset[pw.name]
+        delay_ms = lo + (hi - lo) * delay_u[off:off + n_post * k]
+        delay = jnp.maximum(jnp.round(delay_ms / dt), 1).astype(jnp.int32)
+        pres.append(pre)
+        posts.append(post)
+        delays.append(delay)
+        weights.append(jnp.full((n_post * k,), pw.weight, jnp.float32))
+        nmdas.append(jnp.full((n_post * k,), pw.nmda_weight, jnp.float32))
+        targets.append(post + pw.channel * config.n_cells)
+    n_all = config.n_all
+    # the dummy synapse n_syn: zero weight onto cell 0, presynaptic id n_all
+    pre = jnp.concatenate(pres + [jnp.array([n_all], jnp.int32)])
+    post = jnp.concatenate(posts + [jnp.zeros(1, jnp.int32)])
+    delay = jnp.concatenate(delays + [jnp.ones(1, jnp.int32)])
+    weight = jnp.concatenate(weights + [jnp.zeros(1, jnp.float32)])
+    nmda = jnp.concatenate(nmdas + [jnp.zeros(1, jnp.float32)])
+    target = jnp.concatenate(targets + [jnp.zeros(1, jnp.int32)])
+    n_net = layout.n_network_syn  # P -> ES (the last pathway) is delivered separately
+    out_syn, overflow = _delivery_lists(pre[:n_net], config.n_cells, layout.out_capacity, layout.n_syn)
+    in_plastic_np, _ = layout._plastic_inputs
+    in_plastic = jnp.asarray(in_plastic_np)
+    # presynaptic id of each plastic input (padding -> the dummy cell n_all, which never spikes)
+    in_plastic_pre = jnp.where(in_plastic < layout.n_plastic, pre[jnp.minimum(in_plastic, layout.n_syn)], n_all)
+    if int(config.steps(5.0)) >= 1 << DELAY_BITS:
+        raise ValueError(f"dt_ms = {config.dt_ms}: delays of {config.steps(5.0)} steps do not fit {DELAY_BITS} bits")
+    return Wiring(pre=pre, post=post, delay_steps=delay, weight=weight, nmda=nmda, target=target,
+                  packed=(target << DELAY_BITS) | delay,
+                  out_syn=out_syn, in_plastic=in_plastic, in_plastic_pre=in_plastic_pre.astype(jnp.int32),
+                  out_overflow=overflow)
+
+
+def _delivery_lists(pre, n_pre: int, capacity: int, n_syn: int):
+    """Group synapse ids by presynaptic cell: (n_pre + 1, capacity) padded with n_syn, and the overflow count."""
+    order = jnp.argsort(pre, stable=True).astype(jnp.int32)
+    sorted_pre = pre[order]
+    first = jnp.searchsorted(sorted_pre, jnp.arange(n_pre + 1, dtype=jnp.int32), side="left")
+    rank = jnp.arange(pre.shape[0], dtype=jnp.int32) - first[sorted_pre]
+    table = jnp.full((n_pre + 1, capacity), n_syn, jnp.int32)
+    table = table.at[sorted_pre, rank].set(order, mode="drop")
+    return table, jnp.sum(rank >= capacity).astype(jnp.int32)
+
+
+def in_degree_table(config: NetworkConfig = NetworkConfig()) -> dict[str, int]:
+    """In-degree of every pathway, e.g. {"ES->EM": 65, ...}."""
+    return dict(WiringLayout(config).in_degree)
