@@ -112,12 +112,11 @@ class MusculoskeletalArm:
         return state
 
     def joint_limit_torque(self, q, qd):
-        """Penalty torque (N m) beyond the joint range: spring on the overshoot; the damping part is returned
+        """Penalty torque (N m) beyond the joint range: spring on the overshoot; the damping inside the limit zone is returned
         separately as a coefficient (N m s/rad) so the integrator can take it implicitly."""
         below, above = self._q_min - q, q - self._q_max
         spring = self._k_limit * (jnp.maximum(below, 0.0) - jnp.maximum(above, 0.0))
-        moving_in = ((below > 0) & (qd < 0)) | ((above > 0) & (qd > 0))
-        return spring, jnp.where(moving_in, self._b_limit, 0.0)
+        return spring, jnp.where((below > 0) | (above > 0), self._b_limit, 0.0)
 
     def _substep(self, s: MusculoskeletalArmState, e, h) -> MusculoskeletalArmState:
         geo = self.geometry(s.q, s.qd)

@@ -67,10 +67,13 @@ class MusculoskeletalArmConfig:
             Schutte1993Muscle defaults (0.1 s, 7.667, 1.459854): the paper's tau = 100 ms scale, activation time
             constant ~11 ms at full excitation, deactivation ~68 ms.
         damping: fibre damping of Schutte's force-velocity relation; None keeps each muscle's stored value (1.0).
-        joint_limit_stiffness_nm_per_rad, joint_limit_damping_nms_per_rad: penalty torque beyond the joint range,
-            (shoulder, elbow). The settings file lists "2500 1000 500 1500" for its joint-limit force subsystem
-            without units or meaning; we read them as stiffness (2500, 1000) N m/rad and damping (500, 1500)
-            N m s/rad. Damping acts only while moving further into the limit and is integrated implicitly.
+        joint_limit_stiffness_nm_per_rad, joint_limit_damping_nms_per_rad: Kelvin-Voigt penalty torque beyond the
+            joint range, (shoulder, elbow). The settings file lists "2500 1000 500 1500" for its joint-limit force
+            subsystem without units or meaning. We take the first two as stiffness, N m/rad. Read as damping, the
+            other two would hold the arm against a limit for b/k = 0.2 and 1.5 s after the muscles let go, so the
+            damping is instead near-critical for those stiffnesses and the joints' inertia (2 sqrt(k I) with
+            I ~ 0.25 and 0.05 kg m^2): the arm stops at a limit without bouncing off it and leaves it freely.
+            The damping acts only inside the limit zone and is integrated implicitly.
         shoulder_range_deg, elbow_range_deg: joint ranges where the limit torque starts, degrees.
         relax_at_start: reproduce the intent of the authors' ``ScaleMuscleToRelax``: any muscle whose fibre would be
             stretched beyond its optimal length at the start posture (with a taut tendon) gets a longer tendon slack
@@ -87,7 +90,7 @@ class MusculoskeletalArmConfig:
     activation2: float = 1.459854
     damping: float | None = None
     joint_limit_stiffness_nm_per_rad: tuple[float, float] = (2500.0, 1000.0)
-    joint_limit_damping_nms_per_rad: tuple[float, float] = (500.0, 1500.0)
+    joint_limit_damping_nms_per_rad: tuple[float, float] = (50.0, 15.0)
     shoulder_range_deg: tuple[float, float] = SHOULDER_RANGE_DEG
     elbow_range_deg: tuple[float, float] = ELBOW_RANGE_DEG
     relax_at_start: bool = True
