@@ -1,0 +1,129 @@
+"""``jaxarm evolve``: search the metaparameters with an evosax strategy, in compiled chunks, resumable.
+
+Examples::
+
+    jaxarm evolve --fitness quadratic --generations 100 --population 16 --out runs/evolve-bench
+    jaxarm evolve --arm musculoskeletal --targets left,bottom --strategy CMA_ES --population 32 \\
+        --seeds-per-candidate 2 --generations 100 --train-s 60 --out runs/evolve-msarm
+    jaxarm evolve --list-fitness
+    jaxarm evolve --list-strategies
+
+Running the same command again in a folder that holds a checkpoint resumes the search from it.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from jaxarm.config.validate import ConfigError
+
+DEFAULT_FITNESS = "reaching"
+
+
+def _pairs(text: str, what: str) -> dict:
+    """'a=1,b=2' -> {'a': 1.0, 'b': 2.0}; 'a,b' -> {'a': None, 'b': None}."""
+    out = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        name, sep, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value) if sep else None
+        except ValueError:
+            raise ConfigError(f"--{what}: {item!r}: the value must be a number") from None
+    return out
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="jaxarm evolve", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, help="output folder (checkpoints, history.json, top_k.json, convergence.png);"
+                                             " resumed when it holds a checkpoint")
+    ap.add_argument("--fitness", default=DEFAULT_FITNESS,
+                    help=f"registered fitness (default {DEFAULT_FITNESS!r}; see --list-fitness)")
+    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="musculoskeletal", help="arm")
+    ap.add_argument("--targets", default="left,bottom", help="comma-separated targets (default left,bottom)")
+    ap.add_argument("--train-s", type=float, default=None,
+                    help="simulated training length per evaluation, s (default: the candidate's epochs x 30 s)")
+    ap.add_argument("--strategy", default="CMA_ES", help="evosax strategy (default CMA_ES; SimpleGA for a GA; "
+                                                          "see --list-strategies)")
+    ap.add_argument("--population", type=int, default=16, help="candidates per generation (default 16)")
+    ap.add_argument("--seeds-per-candidate", type=int, default=1, help="evaluations per candidate (default 1)")
+    ap.add_argument("--generations", type=int, default=50, help="generations (default 50)")
+    ap.add_argument("--chunk", type=int, default=10, help="generations per compiled chunk / checkpoint (default 10)")
+    ap.add_argument("--seed", type=int, default=0, help="search seed (default 0)")
+    ap.add_argument("--sigma", type=float, default=0.2, help="initial search width in unit-cube units (default 0.2)")
+    ap.add_argument("--top-k", type=int, default=30, help="best candidates kept and written (default 30)")
+    ap.add_argument("--seed-mode", choices=("common", "independent"), default="common",
+                    help="the same seeds for every candidate of a generation (common) or not")
+    ap.add_argument("--seed-reduce", choices=("mean", "max"), default="mean", help="combine seeds by mean or max")
+    ap.add_argument("--freeze", default="",
+                    help="fields held fixed: 'name' (published value) or 'name=value', comma-separated")
+    ap.add_argument("--search", default="",
+                    help="search only these fields (comma-separated); the others are frozen at published values")
+    ap.add_argument("--start", default="", help="start values of searched fields, 'name=value,...'")
+    ap.add_argument("--strategy-param", default="",
+                    help="evosax params of the strategy, 'name=value,...' (e.g. crossover_rate=0.2 for SimpleGA)")
+    ap.add_argument("--max-chunks", type=int, default=None, help="stop after this many chunks (resume later)")
+    ap.add_argument("--list-fitness", action="store_true", help="list registered fitness functions and exit")
+    ap.add_argument("--list-strategies", action="store_true", help="list evosax strategies and exit")
+    return ap
+
+
+def evolve_main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from jaxarm.evolve import fitness as fitness_registry
+    if args.list_fitness:
+        for name, help_ in fitness_registry.available().items():
+            print(f"{name}  {help_}")
+        return 0
+    if args.list_strategies:
+        from jaxarm.evolve.search import STRATEGIES
+        print("\n".join(STRATEGIES))
+        return 0
+    if args.out is None:
+        print("jaxarm evolve: --out is required", file=sys.stderr)
+        return 2
+    from jaxarm.evolve.runner import run_search
+    from jaxarm.evolve.search import EvolveConfig
+    from jaxarm.evolve.space import SearchSpace
+    from jaxarm.learning.metaparams import ORIGINAL
+
+    try:
+        freeze = {k: (ORIGINAL[k] if v is None and k in ORIGINAL else v)
+                  for k, v in _pairs(args.freeze, "freeze").items()}
+        start = _pairs(args.start, "start")
+        strategy_params = _pairs(args.strategy_param, "strategy-param")
+        for what, d in (("start", start), ("strategy-param", strategy_params)):
+            missing = [k for k, v in d.items() if v is None]
+            if missing:
+                raise ConfigError(f"--{what}: {missing[0]!r} needs a value (name=value)")
+        search = [s.strip() for s in args.search.split(",") if s.strip()] or None
+        space = SearchSpace.make(search=search, freeze=freeze, start=start)
+        config = EvolveConfig(strategy=args.strategy, population_size=args.population, generations=args.generations,
+                              chunk_size=args.chunk, seeds_per_candidate=args.seeds_per_candidate, seed=args.seed,
+                              sigma_init=args.sigma, top_k=args.top_k, seed_mode=args.seed_mode,
+                              seed_reduce=args.seed_reduce, strategy_params=strategy_params)
+        options = fitness_registry.FitnessOptions(
+            arm=args.arm, targets=tuple(t.strip() for t in args.targets.split(",") if t.strip()),
+            train_s=args.train_s)
+        fitness = fitness_registry.build(args.fitness, options)
+        meta = {"name": args.fitness, "arm": options.arm, "targets": list(options.targets), "train_s": options.train_s,
+                "network_seconds_per_eval": fitness.network_seconds_per_eval}
+        if args.max_chunks is not None and args.max_chunks < 1:
+            raise ConfigError(f"--max-chunks = {args.max_chunks}: must be >= 1")
+        print(f"jaxarm evolve: {args.fitness} on {space.n_dims} metaparameters ({', '.join(space.names)}); "
+              f"frozen: {json.dumps(dict(space.frozen))}")
+        result = run_search(fitness, space, config, args.out, fitness_meta=meta, max_chunks=args.max_chunks)
+    except ConfigError as e:
+        print(f"jaxarm evolve: {e}", file=sys.stderr)
+        return 2
+    return 0 if result.finished or args.max_chunks is not None else 1
+
+
+def main() -> int:   # python -m jaxarm.evolve.cli
+    return evolve_main(sys.argv[1:])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,213 @@
+"""The chunked driver: compile once, run chunks, checkpoint and report between them, write the results.
+
+Files in the output folder:
+
+* ``checkpoints/<generation>/``: orbax checkpoints of the whole search state (the last two kept). A folder that holds
+  one is resumed, provided it was started with the same configuration.
+* ``history.json``: per generation best / median / best-so-far fitness, failed evaluations and candidates, the
+  fitness's metrics, and each generation's best metaparameters; plus the configuration and costs. Written after
+  every chunk.
+* ``top_k.json``: the best ``top_k`` candidates of the whole search, best first, as complete metaparameter sets.
+* ``convergence.png``: best, median and best-so-far fitness and failures per generation.
+
+Non-finite numbers are written to JSON as ``null``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+from typing import Callable, NamedTuple
+
+import jax
+import numpy as np
+
+from jaxarm.config.validate import ConfigError
+from jaxarm.evolve.checkpoint import SearchCheckpointer
+from jaxarm.evolve.fitness import Fitness
+from jaxarm.evolve.search import EvolveConfig, SearchState, make_search
+from jaxarm.evolve.space import SearchSpace
+
+HISTORY_FILE = "history.json"
+TOP_K_FILE = "top_k.json"
+PLOT_FILE = "convergence.png"
+CHECKPOINT_DIR = "checkpoints"
+
+
+class SearchResult(NamedTuple):
+    state: SearchState
+    finished: bool              # all generations done (False when stopped by max_chunks)
+    out_dir: Path
+
+
+def _num(x):
+    """A JSON number, or None for NaN/inf."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _jsonable(obj):
+    return json.loads(json.dumps(obj))
+
+
+def _write_json(path: Path, obj) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=1, allow_nan=False) + "\n")
+    tmp.replace(path)   # a reader never sees half a file
+
+
+def describe(space: SearchSpace, config: EvolveConfig, fitness_meta: dict | None) -> dict:
+    """The run's identity: a checkpoint is resumed only by a run with the same description."""
+    return _jsonable({"config": config.to_dict(), "space": space.to_dict(), "fitness": fitness_meta or {}})
+
+
+def top_k_table(state: SearchState, space: SearchSpace) -> list[dict]:
+    """The archive as JSON-ready rows, best first (empty slots left out)."""
+    arc = jax.device_get(state.archive)
+    rows = []
+    for i in range(arc.fitness.shape[0]):
+        if not np.isfinite(arc.fitness[i]):
+            continue
+        mp = space.to_metaparams(arc.unit[i]).to_dict()
+        rows.append({"rank": len(rows) + 1, "fitness": _num(arc.fitness[i]), "generation": int(arc.generation[i]),
+                     "metaparams": mp, "unit": {n: _num(v) for n, v in zip(space.names, arc.unit[i])},
+                     "metrics": {m: _num(v[i]) for m, v in arc.metrics.items()}})
+    return rows
+
+
+def history_table(state: SearchState, space: SearchSpace) -> dict:
+    """The history of the generations done, JSON-ready."""
+    g = int(state.generation)
+    h = jax.device_get(state.history)
+    best_mp = [space.to_metaparams(u).to_dict() if np.all(np.isfinite(u)) else None for u in h.best_unit[:g]]
+    return {
+        "generation": list(range(g)),
+        "best": [_num(v) for v in h.best[:g]],
+        "median": [_num(v) for v in h.median[:g]],
+        "best_so_far": [_num(v) for v in h.best_so_far[:g]],
+        "nonfinite_evals": [int(v) for v in h.nonfinite_evals[:g]],
+        "nonfinite_candidates": [int(v) for v in h.nonfinite_candidates[:g]],
+        "metrics_best": {m: [_num(x) for x in v[:g]] for m, v in h.metrics_best.items()},
+        "metrics_mean": {m: [_num(x) for x in v[:g]] for m, v in h.metrics_mean.items()},
+        "best_metaparams": best_mp,
+    }
+
+
+def plot_convergence(history: dict, path: Path, title: str = "") -> None:
+    """Best, median and best-so-far fitness per generation (top), failed candidates (bottom)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    gen = np.asarray(history["generation"])
+    as_arr = lambda k: np.asarray([np.nan if v is None else v for v in history[k]], float)   # noqa: E731
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    ax.plot(gen, as_arr("median"), color="0.6", lw=1, label="generation median")
+    ax.plot(gen, as_arr("best"), color="C0", lw=1, label="generation best")
+    ax.plot(gen, as_arr("best_so_far"), color="C3", lw=2, label="best so far")
+    ax.set_ylabel("fitness (lower is better)")
+    ax.legend(loc="upper right", frameon=False)
+    ax.set_title(title, fontsize=9)
+    ax2.bar(gen, history["nonfinite_candidates"], color="C1", width=1.0)
+    ax2.set_ylabel("failed\ncandidates")
+    ax2.set_xlabel("generation")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveConfig, out_dir: str | Path, *,
+               fitness_meta: dict | None = None, max_chunks: int | None = None,
+               log: Callable[[str], None] = print) -> SearchResult:
+    """Run (or resume) a search, checkpointing and reporting after every chunk; write the result files.
+
+    ``fitness``: a :class:`Fitness` or a bare pure function (see :mod:`jaxarm.evolve.fitness`). ``fitness_meta``: a
+    JSON description of the fitness (name and options), stored with the checkpoints; resuming with a different one,
+    or a different space or configuration, raises :class:`ConfigError`. ``max_chunks``: stop after that many chunks
+    in this call (the search can be resumed later).
+    """
+    fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    search = make_search(fitness.fn, space, config)
+    description = describe(space, config, fitness_meta)
+    key = jax.random.PRNGKey(config.seed)
+    evals_per_gen = config.population_size * config.seeds_per_candidate
+    G = config.generations
+
+    with SearchCheckpointer(out / CHECKPOINT_DIR) as ckpt:
+        costs = {"compile_s": 0.0, "run_s": 0.0, "evaluations": 0}
+        if ckpt.latest_generation() is not None:
+            saved = ckpt.read_meta()
+            if saved.get("run") != description:
+                diff = [k for k in description if saved.get("run", {}).get(k) != description[k]]
+                raise ConfigError(f"{out} holds a checkpoint of a different search (differs in: {', '.join(diff)}); "
+                                  f"use another output folder or the same options")
+            state, meta = ckpt.restore(jax.eval_shape(search.init, key))
+            costs = meta.get("costs", costs)
+            log(f"resuming from the checkpoint at generation {int(state.generation)}/{G} in {ckpt.directory}")
+        else:
+            state = search.init(key)
+
+        t0 = time.perf_counter()
+        run_chunk = search.run_chunk.lower(state).compile()
+        compile_s = time.perf_counter() - t0
+        costs["compile_s"] = costs["compile_s"] + compile_s
+        log(f"compiled {config.strategy} chunk ({config.chunk_size} generations x {config.population_size} candidates"
+            f" x {config.seeds_per_candidate} seeds, {space.n_dims} dims) in {compile_s:.1f} s")
+
+        chunks = 0
+        while int(state.generation) < G and (max_chunks is None or chunks < max_chunks):
+            g0 = int(state.generation)
+            t0 = time.perf_counter()
+            state = jax.block_until_ready(run_chunk(state))
+            dt = time.perf_counter() - t0
+            g1 = int(state.generation)
+            n_eval = (g1 - g0) * evals_per_gen
+            costs["run_s"] += dt
+            costs["evaluations"] += n_eval
+            chunks += 1
+            ckpt.save(state, {"run": description, "costs": costs})
+            h = jax.device_get(state.history)
+            failed_chunk = int(np.sum(h.nonfinite_candidates[g0:g1]))
+            failed_total = int(np.sum(h.nonfinite_candidates[:g1]))
+            rate = n_eval / dt if dt > 0 else float("inf")
+            net = (f" ({rate * fitness.network_seconds_per_eval:.3g} network-s/s)"
+                   if fitness.network_seconds_per_eval > 0 else "")
+            log(f"gen {g1:>{len(str(G))}}/{G} | best {h.best[g1 - 1]:.5g} | median {h.median[g1 - 1]:.5g} | "
+                f"best so far {h.best_so_far[g1 - 1]:.5g} | failed {failed_chunk} (total {failed_total}) | "
+                f"{rate:.3g} eval/s{net} | {dt:.2f} s")
+            _write_outputs(state, space, config, description, costs, fitness, out, plot=False)
+
+        finished = int(state.generation) >= G
+        _write_outputs(state, space, config, description, costs, fitness, out, plot=True)
+        if finished:
+            best = top_k_table(state, space)
+            if best:
+                log(f"done: best fitness {best[0]['fitness']:.5g} (generation {best[0]['generation']}); "
+                    f"results in {out}")
+        else:
+            log(f"stopped at generation {int(state.generation)}/{G}; run again with the same options to resume")
+    return SearchResult(state, finished, out)
+
+
+def _write_outputs(state, space, config, description, costs, fitness, out: Path, plot: bool) -> None:
+    history = history_table(state, space)
+    evals = costs["evaluations"]
+    summary = {
+        **description,
+        "generations_done": int(state.generation),
+        "costs": {**costs,
+                  "evaluations_per_s": evals / costs["run_s"] if costs["run_s"] > 0 else None,
+                  "network_seconds_per_s": (evals * fitness.network_seconds_per_eval / costs["run_s"]
+                                            if costs["run_s"] > 0 and fitness.network_seconds_per_eval > 0 else None)},
+        "history": history,
+    }
+    _write_json(out / HISTORY_FILE, summary)
+    _write_json(out / TOP_K_FILE, {"fitness": description["fitness"], "lower_is_better": True,
+                                   "top_k": top_k_table(state, space)})
+    if plot and history["generation"]:
+        plot_convergence(history, out / PLOT_FILE,
+                         title=f"{config.strategy}, population {config.population_size}, "
+                               f"{config.seeds_per_candidate} seed(s)/candidate, {description['fitness'].get('name', '')}")

@@ -1,0 +1,324 @@
+"""The compiled search: evosax ask -> ``vmap`` of the fitness over candidates x seeds -> tell, in ``lax.scan``.
+
+:func:`make_search` returns two pure functions, each one ``jit``:
+
+* ``init(key) -> SearchState``: the strategy's state, the PRNG key, an empty history and an empty top-k archive.
+* ``run_chunk(state) -> SearchState``: ``config.chunk_size`` generations. Generations past ``config.generations``
+  leave the state unchanged (``lax.cond``), so every chunk has the same shape and the loop compiles once.
+
+Everything the search needs to continue is in :class:`SearchState` (arrays only, PRNG key as raw ``uint32[2]``), so a
+search restored from a checkpoint of it continues exactly as the uninterrupted one.
+
+One generation:
+
+1. ``ask``: the strategy proposes ``population_size`` points of the unit cube; they are clipped to [0, 1] (the
+   *repaired* candidates are what is evaluated, told, and archived, so a population-based strategy never leaves
+   the bounds).
+2. Each candidate is evaluated with ``seeds_per_candidate`` keys ("common": the same keys for every candidate of the
+   generation, which makes their comparison less noisy; "independent": a key per evaluation) and the seeds combine
+   by their mean (or their maximum, the worst case). A candidate with any non-finite evaluation fails.
+3. ``tell``: failed candidates are told a fitness strictly worse than the generation's worst finite one (the
+   generation's worst plus its spread), so they rank last, whatever the strategy does with NaN. Their count is
+   recorded in the history.
+
+evosax minimises; so does this search (lower fitness is better).
+"""
+from __future__ import annotations
+
+import dataclasses
+import inspect
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+from jax import lax
+
+from jaxarm.config.validate import ConfigError, check_choice, check_range
+from jaxarm.evolve.space import SearchSpace
+
+
+def _strategies() -> dict:
+    from evosax.algorithms import algorithms
+    return dict(algorithms)
+
+
+#: evosax 0.3.2 strategy names (``evosax.algorithms.algorithms``), e.g. "CMA_ES", "SimpleGA", "Sep_CMA_ES", "PSO".
+STRATEGIES: tuple[str, ...] = tuple(sorted(_strategies()))
+SEED_MODES = ("common", "independent")
+SEED_REDUCES = ("mean", "max")
+
+
+@dataclass(frozen=True)
+class EvolveConfig:
+    """Static configuration of a search (hashable; validated on construction).
+
+    Attributes:
+        strategy: evosax strategy name (:data:`STRATEGIES`); "CMA_ES" by default, "SimpleGA" is the genetic
+            algorithm closest to the authors' (inspyred) one.
+        population_size: candidates per generation.
+        generations: generations in the whole search.
+        chunk_size: generations per compiled chunk (a checkpoint and a progress line between chunks).
+        seeds_per_candidate: evaluations (networks) per candidate per generation.
+        seed: seed of the search's PRNG key.
+        sigma_init: initial search width in unit-cube coordinates (CMA-ES std; the mutation std of strategies that
+            take a std schedule; the std of the others that have ``std_init``).
+        top_k: best candidates kept (the paper reported its top 30).
+        seed_mode: "common" (the same seeds for every candidate of a generation) or "independent".
+        seed_reduce: how a candidate's seeds combine: "mean" or "max" (worst case).
+        strategy_params: ``((name, value), ...)`` overrides of the strategy's evosax params, e.g.
+            ``(("crossover_rate", 0.2),)`` for SimpleGA (the authors' later GA used uniform crossover at 0.2).
+    """
+
+    strategy: str = "CMA_ES"
+    population_size: int = 16
+    generations: int = 50
+    chunk_size: int = 10
+    seeds_per_candidate: int = 1
+    seed: int = 0
+    sigma_init: float = 0.2
+    top_k: int = 30
+    seed_mode: str = "common"
+    seed_reduce: str = "mean"
+    strategy_params: tuple = ()
+
+    def __post_init__(self):
+        check_choice(self, "strategy", STRATEGIES)
+        check_range(self, "population_size", 2, None, integer=True)
+        check_range(self, "generations", 1, None, integer=True)
+        check_range(self, "chunk_size", 1, None, integer=True)
+        check_range(self, "seeds_per_candidate", 1, None, integer=True)
+        check_range(self, "seed", 0, 2**31 - 1, integer=True)
+        check_range(self, "sigma_init", 0.0, 10.0, lo_open=True)
+        check_range(self, "top_k", 1, None, integer=True)
+        check_choice(self, "seed_mode", SEED_MODES)
+        check_choice(self, "seed_reduce", SEED_REDUCES)
+        pairs = dict(self.strategy_params.items() if isinstance(self.strategy_params, dict) else self.strategy_params)
+        object.__setattr__(self, "strategy_params", tuple(sorted((str(k), float(v)) for k, v in pairs.items())))
+        make_strategy(self, n_dims=2)   # the strategy's own constraints (e.g. an even population) and param names
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["strategy_params"] = dict(self.strategy_params)
+        return d
+
+
+def make_strategy(config: EvolveConfig, n_dims: int):
+    """The evosax strategy object and its params for ``n_dims`` unit-cube dimensions."""
+    cls = _strategies()[config.strategy]
+    kwargs = {}
+    if "std_schedule" in inspect.signature(cls.__init__).parameters:
+        kwargs["std_schedule"] = optax.constant_schedule(config.sigma_init)
+    try:
+        es = cls(population_size=config.population_size, solution=jnp.zeros((n_dims,), jnp.float32), **kwargs)
+        params = es.default_params
+    except AssertionError as e:   # evosax states its constraints as assertions (e.g. "Population size must be even")
+        raise ConfigError(f"EvolveConfig.population_size = {config.population_size!r}: {config.strategy} "
+                          f"refuses it ({e})") from None
+    known = {f.name for f in dataclasses.fields(params)}
+    if "std_init" in known:
+        params = params.replace(std_init=jnp.asarray(config.sigma_init, jnp.float32))
+    for name, value in config.strategy_params:
+        if name not in known:
+            raise ConfigError(f"EvolveConfig.strategy_params: {name!r} is not a parameter of {config.strategy}; "
+                              f"known: {', '.join(sorted(known))}")
+        params = params.replace(**{name: jnp.asarray(value, jnp.float32)})
+    return es, params
+
+
+# --------------------------------------------------------------------------------------------------- state
+@struct.dataclass
+class History:
+    """Per generation (axis 0 has ``config.generations`` entries; not yet run = NaN / -1).
+
+    best, median: the generation's best and median candidate fitness over its finite candidates.
+    best_so_far: the best candidate fitness of the search up to and including the generation.
+    nonfinite_evals: evaluations (candidate x seed) whose fitness was NaN or +-inf.
+    nonfinite_candidates: candidates that failed (any non-finite evaluation).
+    best_unit: the generation's best candidate in the unit cube, (generations, n_dims).
+    metrics_best / metrics_mean: the fitness's reported metrics (mean over seeds) of the generation's best
+        candidate / averaged over its candidates.
+    """
+
+    best: jnp.ndarray
+    median: jnp.ndarray
+    best_so_far: jnp.ndarray
+    nonfinite_evals: jnp.ndarray
+    nonfinite_candidates: jnp.ndarray
+    best_unit: jnp.ndarray
+    metrics_best: dict
+    metrics_mean: dict
+
+
+@struct.dataclass
+class Archive:
+    """The ``top_k`` best candidates seen so far, best first (empty slots: fitness +inf, unit NaN, generation -1)."""
+
+    unit: jnp.ndarray          # (top_k, n_dims)
+    fitness: jnp.ndarray       # (top_k,)
+    generation: jnp.ndarray    # (top_k,) int32, the generation that evaluated it
+    metrics: dict              # name -> (top_k,)
+
+
+@struct.dataclass
+class SearchState:
+    """Everything a search needs to continue (arrays only; a checkpoint holds exactly this)."""
+
+    generation: jnp.ndarray    # int32 (), generations completed
+    key: jnp.ndarray           # uint32 (2,), raw PRNG key
+    strategy: object           # the evosax strategy's state
+    history: History
+    archive: Archive
+
+
+class Search(NamedTuple):
+    """What :func:`make_search` returns."""
+
+    init: Callable            # key -> SearchState
+    run_chunk: Callable       # SearchState -> SearchState (jitted)
+    config: EvolveConfig
+    space: SearchSpace
+    metric_names: tuple       # names of the fitness's reported metrics
+
+
+def raw_key(key) -> jnp.ndarray:
+    """A raw ``uint32[2]`` key from a raw or typed PRNG key."""
+    key = jnp.asarray(key)
+    if jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
+        key = jax.random.key_data(key)
+    return key.astype(jnp.uint32)
+
+
+def _strong(tree):
+    """Drop JAX weak types (a checkpoint does not keep them, and a weak/strong mismatch would recompile)."""
+    return jax.tree.map(lambda x: lax.convert_element_type(x, jnp.result_type(x)), tree)
+
+
+def _normalise(fitness_fn: Callable) -> Callable:
+    """Wrap a fitness so it always returns (float32 scalar, {name: float32 scalar})."""
+
+    def call(key, mp):
+        out = fitness_fn(key, mp)
+        f, metrics = (out if isinstance(out, tuple) else (out, {}))
+        f = jnp.asarray(f, jnp.float32)
+        if f.shape != ():
+            raise ValueError(f"a fitness must return a scalar; got shape {f.shape}")
+        metrics = {str(k): jnp.asarray(v, jnp.float32) for k, v in dict(metrics).items()}
+        for k, v in metrics.items():
+            if v.shape != ():
+                raise ValueError(f"fitness metric {k!r} must be a scalar; got shape {v.shape}")
+        return f, metrics
+
+    return call
+
+
+def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) -> Search:
+    """Build the pure ``init`` and ``run_chunk`` of a search of ``fitness_fn`` over ``space``.
+
+    ``fitness_fn(key, metaparams) -> fitness | (fitness, metrics)``, lower is better (see :mod:`jaxarm.evolve.fitness`).
+    """
+    if not isinstance(space, SearchSpace):
+        raise TypeError(f"space must be a SearchSpace, got {type(space).__name__}")
+    from evosax.algorithms.population_based.base import PopulationBasedAlgorithm
+
+    n, P, S, K, G = space.n_dims, config.population_size, config.seeds_per_candidate, config.top_k, config.generations
+    es, params = make_strategy(config, n)
+    population_based = isinstance(es, PopulationBasedAlgorithm)
+    evaluate_one = _normalise(fitness_fn)
+    start_unit = jnp.asarray(space.start_unit())
+
+    # The metrics' names, from the fitness's output structure (one abstract trace, no evaluation).
+    _, metric_shapes = jax.eval_shape(evaluate_one, jax.ShapeDtypeStruct((2,), jnp.uint32),
+                                      jax.eval_shape(space.to_metaparams, jax.ShapeDtypeStruct((n,), jnp.float32)))
+    metric_names = tuple(sorted(metric_shapes))
+
+    def init(key) -> SearchState:
+        key, k_init, k_pop = jax.random.split(raw_key(key), 3)
+        if population_based:
+            # Unevaluated first population (fitness +inf): uniform in the cube, the start point as its first member.
+            population = jax.random.uniform(k_pop, (P, n), jnp.float32).at[0].set(start_unit)
+            es_state = es.init(k_init, population, jnp.full((P,), jnp.inf, jnp.float32), params)
+        else:
+            es_state = es.init(k_init, start_unit, params)
+        nan_g = jnp.full((G,), jnp.nan, jnp.float32)
+        history = History(best=nan_g, median=nan_g, best_so_far=nan_g,
+                          nonfinite_evals=jnp.full((G,), -1, jnp.int32),
+                          nonfinite_candidates=jnp.full((G,), -1, jnp.int32),
+                          best_unit=jnp.full((G, n), jnp.nan, jnp.float32),
+                          metrics_best={m: nan_g for m in metric_names},
+                          metrics_mean={m: nan_g for m in metric_names})
+        archive = Archive(unit=jnp.full((K, n), jnp.nan, jnp.float32), fitness=jnp.full((K,), jnp.inf, jnp.float32),
+                          generation=jnp.full((K,), -1, jnp.int32),
+                          metrics={m: jnp.full((K,), jnp.nan, jnp.float32) for m in metric_names})
+        return _strong(SearchState(generation=jnp.zeros((), jnp.int32), key=key, strategy=es_state,
+                                   history=history, archive=archive))
+
+
+    def evaluate(k_eval, population):
+        """Fitness (P,) (NaN = failed), failed-evaluation count (P,), metrics {name: (P,)}."""
+        if config.seed_mode == "common":
+            keys = jnp.broadcast_to(jax.random.split(k_eval, S)[None], (P, S, 2))
+        else:
+            keys = jax.random.split(k_eval, P * S).reshape(P, S, 2)
+        mps = space.to_metaparams(population)
+        per_seed = jax.vmap(jax.vmap(evaluate_one, in_axes=(0, None)), in_axes=(0, 0))
+        f, metrics = per_seed(keys, mps)                       # (P, S), {name: (P, S)}
+        bad = ~jnp.isfinite(f)
+        f_ok = jnp.where(bad, 0.0, f)
+        combined = jnp.mean(f_ok, axis=1) if config.seed_reduce == "mean" else jnp.max(f_ok, axis=1)
+        failed = jnp.any(bad, axis=1)
+        return (jnp.where(failed, jnp.nan, combined), jnp.sum(bad, axis=1),
+                {m: jnp.mean(v, axis=1) for m, v in metrics.items()})
+
+    def generation_step(state: SearchState) -> SearchState:
+        key, k_ask, k_eval, k_tell = jax.random.split(state.key, 4)
+        population, es_state = es.ask(k_ask, state.strategy, params)
+        population = jnp.clip(population, 0.0, 1.0)
+        fitness, bad_evals, metrics = evaluate(k_eval, population)
+        failed = jnp.isnan(fitness)
+        finite = jnp.where(failed, jnp.nan, fitness)
+        worst, best = jnp.nanmax(finite), jnp.nanmin(finite)
+        spread = jnp.maximum(worst - best, 1e-6 + 1e-3 * jnp.abs(worst))
+        penalty = jnp.where(jnp.all(failed), 0.0, worst + spread)
+        told = jnp.where(failed, penalty, fitness)
+        es_state, _ = es.tell(k_tell, population, told, es_state, params)
+
+        g = state.generation
+        rankable = jnp.where(failed, jnp.inf, fitness)
+        i_best = jnp.argmin(rankable)
+        none_ok = jnp.all(failed)
+        # Archive: merge and keep the top_k (stable sort: on ties the earlier entry stays ahead).
+        arc = state.archive
+        all_f = jnp.concatenate([arc.fitness, rankable])
+        order = jnp.argsort(all_f, stable=True)[:K]
+        archive = Archive(unit=jnp.concatenate([arc.unit, population])[order], fitness=all_f[order],
+                          generation=jnp.concatenate([arc.generation, jnp.full((P,), g, jnp.int32)])[order],
+                          metrics={m: jnp.concatenate([arc.metrics[m], metrics[m]])[order] for m in metric_names})
+        h = state.history
+        history = History(
+            best=h.best.at[g].set(jnp.where(none_ok, jnp.nan, rankable[i_best])),
+            median=h.median.at[g].set(jnp.nanmedian(finite)),
+            best_so_far=h.best_so_far.at[g].set(jnp.where(jnp.isinf(archive.fitness[0]), jnp.nan, archive.fitness[0])),
+            nonfinite_evals=h.nonfinite_evals.at[g].set(jnp.sum(bad_evals).astype(jnp.int32)),
+            nonfinite_candidates=h.nonfinite_candidates.at[g].set(jnp.sum(failed).astype(jnp.int32)),
+            best_unit=h.best_unit.at[g].set(jnp.where(none_ok, jnp.nan, population[i_best])),
+            metrics_best={m: h.metrics_best[m].at[g].set(jnp.where(none_ok, jnp.nan, metrics[m][i_best]))
+                          for m in metric_names},
+            metrics_mean={m: h.metrics_mean[m].at[g].set(jnp.nanmean(metrics[m])) for m in metric_names},
+        )
+        new = SearchState(generation=g + 1, key=key, strategy=es_state, history=history, archive=archive)
+        # Same dtypes as the carry (evosax may return weak-typed scalars).
+        return jax.tree.map(lambda a, b: lax.convert_element_type(a, b.dtype), new, state)
+
+    def scan_body(state, _):
+        state = lax.cond(state.generation < G, generation_step, lambda s: s, state)
+        return state, None
+
+    @jax.jit
+    def run_chunk(state: SearchState) -> SearchState:
+        return lax.scan(scan_body, state, None, length=config.chunk_size)[0]
+
+    return Search(init=jax.jit(init), run_chunk=run_chunk, config=config, space=space,
+                  metric_names=metric_names)
