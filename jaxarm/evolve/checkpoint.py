@@ -12,6 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
+import numpy as np
 import orbax.checkpoint as ocp
 
 
@@ -44,7 +46,10 @@ class SearchCheckpointer:
         abstract = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), like_state)
         restored = self._manager.restore(step, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract),
                                                                        meta=ocp.args.JsonRestore()))
-        return restored.state, restored.meta
+        # Orbax returns arrays committed to a device; a fresh state's are not, and jit keys its cache on that: the
+        # same arrays, uncommitted, run the already compiled chunk.
+        state = jax.tree.map(lambda x: jnp.asarray(np.asarray(x)), restored.state)
+        return state, restored.meta
 
     def read_meta(self, generation: int | None = None) -> dict:
         """The JSON description saved with the checkpoint at ``generation`` (default: the latest)."""

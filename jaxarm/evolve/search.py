@@ -18,8 +18,14 @@ One generation:
    generation, which makes their comparison less noisy; "independent": a key per evaluation) and the seeds combine
    by their mean (or their maximum, the worst case). A candidate with any non-finite evaluation fails.
 3. ``tell``: failed candidates are told a fitness strictly worse than the generation's worst finite one (the
-   generation's worst plus its spread), so they rank last, whatever the strategy does with NaN. Their count is
-   recorded in the history.
+   generation's worst plus its spread, :func:`rank_failures_last`), so they rank last, whatever the strategy does
+   with NaN. Their count is recorded in the history.
+4. The history (best / median fitness, failures, metrics) and the top-k archive are updated.
+
+evosax initialises population-based strategies (GAs, DE, PSO) from an evaluated population: for them, generation 0
+evaluates a first population (uniform in the cube, with the start point as its first member) and initialises the
+strategy with it, instead of ask/tell. Distribution-based strategies (CMA-ES, ...) start from a mean at the start point
+with width ``sigma_init``.
 
 evosax minimises; so does this search (lower fitness is better).
 """
@@ -40,12 +46,17 @@ from jaxarm.config.validate import ConfigError, check_choice, check_range
 from jaxarm.evolve.space import SearchSpace
 
 
+#: evosax strategies left out: they search several populations at once (a ``num_populations`` argument).
+EXCLUDED_STRATEGIES = ("SV_CMA_ES", "SV_Open_ES")
+
+
 def _strategies() -> dict:
     from evosax.algorithms import algorithms
-    return dict(algorithms)
+    return {k: v for k, v in algorithms.items() if k not in EXCLUDED_STRATEGIES}
 
 
-#: evosax 0.3.2 strategy names (``evosax.algorithms.algorithms``), e.g. "CMA_ES", "SimpleGA", "Sep_CMA_ES", "PSO".
+#: evosax 0.3.2 strategy names (``evosax.algorithms.algorithms`` but :data:`EXCLUDED_STRATEGIES`), e.g. "CMA_ES",
+#: "Sep_CMA_ES", "SimpleGA", "DifferentialEvolution", "PSO", "RandomSearch" (uniform in the unit cube).
 STRATEGIES: tuple[str, ...] = tuple(sorted(_strategies()))
 SEED_MODES = ("common", "independent")
 SEED_REDUCES = ("mean", "max")
@@ -109,8 +120,11 @@ def make_strategy(config: EvolveConfig, n_dims: int):
     """The evosax strategy object and its params for ``n_dims`` unit-cube dimensions."""
     cls = _strategies()[config.strategy]
     kwargs = {}
-    if "std_schedule" in inspect.signature(cls.__init__).parameters:
+    signature = inspect.signature(cls.__init__).parameters
+    if "std_schedule" in signature:
         kwargs["std_schedule"] = optax.constant_schedule(config.sigma_init)
+    if "sampling_fn" in signature:   # RandomSearch: uniform over the unit cube
+        kwargs["sampling_fn"] = lambda key: jax.random.uniform(key, (n_dims,), jnp.float32)
     try:
         es = cls(population_size=config.population_size, solution=jnp.zeros((n_dims,), jnp.float32), **kwargs)
         params = es.default_params
@@ -196,6 +210,25 @@ def _strong(tree):
     return jax.tree.map(lambda x: lax.convert_element_type(x, jnp.result_type(x)), tree)
 
 
+def rank_failures_last(fitness):
+    """Fitness to tell the strategy: non-finite entries (failed evaluations) replaced by a value strictly worse than
+    every finite one (the worst finite plus the finite spread, at least 1e-6 + 1e-3 |worst| more), so that they rank
+    last; on the finite values' own scale, so strategies that use fitness values (not ranks) are not swamped by an
+    arbitrary constant. All failed: all 0 (a tie)."""
+    fitness = jnp.asarray(fitness, jnp.float32)
+    failed = ~jnp.isfinite(fitness)
+    finite = jnp.where(failed, jnp.nan, fitness)
+    worst, best = jnp.nanmax(finite), jnp.nanmin(finite)
+    spread = jnp.maximum(worst - best, 1e-6 + 1e-3 * jnp.abs(worst))
+    penalty = jnp.where(jnp.all(failed), 0.0, worst + spread)
+    return jnp.where(failed, penalty, fitness)
+
+
+def _like(tree, reference):
+    """``tree`` with the dtypes (and strong types) of ``reference``."""
+    return jax.tree.map(lambda a, b: lax.convert_element_type(a, b.dtype), tree, reference)
+
+
 def _normalise(fitness_fn: Callable) -> Callable:
     """Wrap a fitness so it always returns (float32 scalar, {name: float32 scalar})."""
 
@@ -237,7 +270,8 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
     def init(key) -> SearchState:
         key, k_init, k_pop = jax.random.split(raw_key(key), 3)
         if population_based:
-            # Unevaluated first population (fitness +inf): uniform in the cube, the start point as its first member.
+            # A placeholder state holding the first population (uniform in the cube, the start point as its first
+            # member); generation 0 evaluates it and initialises the strategy with its fitness (see generation_step).
             population = jax.random.uniform(k_pop, (P, n), jnp.float32).at[0].set(start_unit)
             es_state = es.init(k_init, population, jnp.full((P,), jnp.inf, jnp.float32), params)
         else:
@@ -274,16 +308,27 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
 
     def generation_step(state: SearchState) -> SearchState:
         key, k_ask, k_eval, k_tell = jax.random.split(state.key, 4)
-        population, es_state = es.ask(k_ask, state.strategy, params)
+        like = lambda tree: _like(tree, state.strategy)   # noqa: E731  (cond branches must agree on dtypes)
+
+        def ask():
+            population, es_state = es.ask(k_ask, state.strategy, params)
+            return population, like(es_state)
+
+        def tell(population, told, es_state):
+            return like(es.tell(k_tell, population, told, es_state, params)[0])
+
+        # evosax initialises a population-based strategy from an *evaluated* population: its generation 0 evaluates
+        # the first population (held by the placeholder state of init) and calls init instead of ask/tell.
+        first = population_based & (state.generation == 0)
+        population, es_state = (lax.cond(first, lambda: (state.strategy.population, state.strategy), ask)
+                                if population_based else ask())
         population = jnp.clip(population, 0.0, 1.0)
         fitness, bad_evals, metrics = evaluate(k_eval, population)
         failed = jnp.isnan(fitness)
         finite = jnp.where(failed, jnp.nan, fitness)
-        worst, best = jnp.nanmax(finite), jnp.nanmin(finite)
-        spread = jnp.maximum(worst - best, 1e-6 + 1e-3 * jnp.abs(worst))
-        penalty = jnp.where(jnp.all(failed), 0.0, worst + spread)
-        told = jnp.where(failed, penalty, fitness)
-        es_state, _ = es.tell(k_tell, population, told, es_state, params)
+        told = rank_failures_last(fitness)
+        es_state = (lax.cond(first, lambda p, t, s: like(es.init(k_tell, p, t, params)), tell, population, told, es_state)
+                    if population_based else tell(population, told, es_state))
 
         g = state.generation
         rankable = jnp.where(failed, jnp.inf, fitness)
@@ -309,8 +354,7 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
             metrics_mean={m: h.metrics_mean[m].at[g].set(jnp.nanmean(metrics[m])) for m in metric_names},
         )
         new = SearchState(generation=g + 1, key=key, strategy=es_state, history=history, archive=archive)
-        # Same dtypes as the carry (evosax may return weak-typed scalars).
-        return jax.tree.map(lambda a, b: lax.convert_element_type(a, b.dtype), new, state)
+        return _like(new, state)   # evosax may return weak-typed scalars; the carry's types must not change
 
     def scan_body(state, _):
         state = lax.cond(state.generation < G, generation_step, lambda s: s, state)
