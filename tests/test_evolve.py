@@ -354,3 +354,62 @@ def test_every_strategy_runs(strategy):
     assert int(state.generation) == 4 and np.isfinite(float(h.best_so_far[-1]))
     unit = np.asarray(state.archive.unit)[np.isfinite(np.asarray(state.archive.fitness))]
     assert np.all((unit >= 0) & (unit <= 1))
+
+
+_SLOW_CLI = """
+import sys
+import jax.numpy as jnp
+from jax import lax
+from jaxarm.evolve import fitness as fit
+from jaxarm.evolve.cli import evolve_main
+
+def make_slow(options):   # the quadratic plus ~0.1 s of busy work per generation, so a kill lands mid-search
+    base = fit.make_quadratic(0.01)
+    def fn(key, mp):
+        f, m = base(key, mp)
+        x = lax.fori_loop(0, 100000, lambda i, x: jnp.sin(x) + f * 1e-9, jnp.zeros(64))
+        return f + 0.0 * x.sum(), m
+    return fit.Fitness(fn)
+
+fit.register("slow-quadratic", make_slow, "test")
+raise SystemExit(evolve_main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.slow
+def test_killed_process_resumes_bit_for_bit(tmp_path):
+    """A real kill (SIGKILL) of a `jaxarm evolve` process after its first checkpoint; the rerun resumes and ends with
+    the same history and top-k as an uninterrupted run."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "slow_cli.py"
+    script.write_text(_SLOW_CLI)
+    args = ["--fitness", "slow-quadratic", "--population", "8", "--generations", "40", "--chunk", "1",
+            "--seeds-per-candidate", "2", "--top-k", "10"]
+    run = lambda out: subprocess.run([sys.executable, str(script), *args, "--out", str(out)],   # noqa: E731
+                                     capture_output=True, text=True, timeout=600)
+    full = run(tmp_path / "full")
+    assert full.returncode == 0, full.stderr
+
+    killed_dir = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, str(script), *args, "--out", str(killed_dir)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    deadline = time.time() + 300
+    while not (killed_dir / "checkpoints" / "2").exists():
+        assert proc.poll() is None and time.time() < deadline, "the search ended before it could be killed"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    stopped_at = SearchCheckpointer(killed_dir / "checkpoints").latest_generation()
+    assert 2 <= stopped_at < 40
+    resumed = run(killed_dir)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"resuming from the checkpoint at generation {stopped_at}/40" in resumed.stdout
+    a = json.loads((tmp_path / "full" / HISTORY_FILE).read_text())["history"]
+    b = json.loads((killed_dir / HISTORY_FILE).read_text())["history"]
+    assert a == b and len(a["best"]) == 40
+    assert json.loads((tmp_path / "full" / TOP_K_FILE).read_text()) == json.loads((killed_dir / TOP_K_FILE).read_text())
