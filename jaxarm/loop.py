@@ -1,0 +1,204 @@
+"""The closed loop of spec §3: network ↔ arm every 10 ms, with the critic, R-STDP and babbling in training.
+
+One interface period (``interval``) at time t (ms since the start of the run), in the original's order:
+
+1. the network runs 10 ms (its own dt inside, ms/mV units);
+2. the EM spikes of those 10 ms are pushed into the readout history, and the readout gives 4 excitations from the
+   spikes in (t − 130, t − 60] ms ÷ v_em_max;
+3. the arm advances 10 ms under those excitations (SI units: m, s, rad);
+4. the hand–target distance (m) is computed; the 4 proprioceptive lengths (m) update the P code;
+5. training only: if t − last critic update > rl_dt_ms, the critic compares the last two stored distances
+   (10 ms apart, both before this step) and rewards (≥ 1 mm closer) or punishes (≥ 1 mm farther) every synapse
+   with a live tag; motor babbling picks the EM noise rates at the same moments; every syn_scaling_dt_ms global
+   synaptic scaling runs;
+6. the distance is appended to the history.
+
+Everything is a pure function of (state, key, metaparameters) so it can be ``vmap``-ed over networks and over
+metaparameter sets and ``lax.scan``-ned over intervals and epochs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.config.network import NetworkConfig
+from jaxarm.config.validate import ConfigError, check_choice
+from jaxarm.learning import babbling as bab
+from jaxarm.learning import critic as crit
+from jaxarm.learning import stdp
+from jaxarm.learning.metaparams import MetaParams
+from jaxarm.network import readout as ro
+from jaxarm.network.network import Network, NetworkParams
+from jaxarm.network.populations import Populations
+from jaxarm.network.wiring import PATHWAYS, CELL_TYPE
+from jaxarm.task.config import TaskConfig
+
+ARMS = ("simple", "musculoskeletal")
+POP_NAMES = ("ES", "IS", "ISL", "EM", "IM", "IML")
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Static structure of a closed-loop run.
+
+    Attributes:
+        arm: "simple" (the authors' kinematic arm, their default) or "musculoskeletal".
+        backend: geometry backend of the musculoskeletal arm, "fast" or "mjx".
+        network, task, babbling, eligibility: the sub-configurations.
+        reseed_noise_each_epoch: False (the original) restarts the background-noise streams identically at every
+            epoch; True draws fresh streams per epoch.
+        plasticity: False freezes the weights in training (babbling still runs): a control condition.
+    """
+
+    arm: str = "simple"
+    backend: str = "fast"
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    task: TaskConfig = field(default_factory=TaskConfig)
+    babbling: bab.BabblingConfig = field(default_factory=bab.BabblingConfig)
+    eligibility: stdp.EligibilityConfig = field(default_factory=stdp.EligibilityConfig)
+    reseed_noise_each_epoch: bool = False
+    plasticity: bool = True
+
+    def __post_init__(self):
+        check_choice(self, "arm", ARMS)
+        check_choice(self, "backend", ("fast", "mjx"))
+        for name in ("reseed_noise_each_epoch", "plasticity"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"LoopConfig.{name} = {getattr(self, name)!r}: must be True or False")
+        if abs(self.network.interface_ms - 1000.0 * self.task.update_interval_s) > 1e-9:
+            raise ConfigError(f"LoopConfig: network.interface_ms = {self.network.interface_ms} must equal "
+                              f"task.update_interval_s = {self.task.update_interval_s} s")
+
+
+class LoopState(NamedTuple):
+    net: Any                    # network State (ms/mV inside)
+    arm: Any                    # arm state (SI)
+    readout: ro.ReadoutState
+    babble: bab.BabblingState
+    err_hist_m: jnp.ndarray     # (2,) hand–target distance at the last two interface times, older first, m
+    last_rl_ms: jnp.ndarray     # () time of the last critic update, ms
+    last_scaling_ms: jnp.ndarray  # () time of the last synaptic scaling, ms
+
+
+class IntervalRecord(NamedTuple):
+    """What one 10 ms interval leaves behind (time-major under scan)."""
+
+    hand_m: jnp.ndarray       # (2,) hand position after the arm moved, m
+    q_rad: jnp.ndarray        # (2,) joint angles, rad
+    u: jnp.ndarray            # (4,) excitations sent to the arm
+    em_counts: jnp.ndarray    # (4,) EM spikes per group in this interval
+    critic: jnp.ndarray       # () +1 reward, -1 punishment, 0 none (always 0 in the test)
+
+
+class ClosedLoop:
+    """Pure functions of one closed-loop configuration."""
+
+    def __init__(self, config: LoopConfig = LoopConfig()):
+        from jaxarm.arm import make_arm
+
+        self.config = config
+        self.net = Network(config.network)
+        self.arm = make_arm(config.arm, backend=config.backend)
+        arm_dt_ms = self.arm.dt_s * 1000.0
+        self.arm_steps = int(round(config.network.interface_ms / arm_dt_ms))
+        if abs(self.arm_steps * arm_dt_ms - config.network.interface_ms) > 1e-6:
+            raise ConfigError(f"arm step {arm_dt_ms} ms does not divide the interface period "
+                              f"{config.network.interface_ms} ms")
+        self.target_m = jnp.asarray(config.task.target_xy_m, jnp.float32)
+        self.start_q = jnp.asarray(config.task.start_posture_rad, jnp.float32)
+        self.steps_per_interval = config.network.steps_per_interface
+        self.pops = Populations(config.network)
+
+    # -- static per-synapse tables of the learning rule --------------------------------------------------------
+    @cached_property
+    def plastic_tables(self):
+        """(maxw selector, is E->E) per plastic synapse, from the pathway of each synapse."""
+        layout = self.net.layout
+        pw = layout.pathway_of_synapse()[: layout.n_plastic]
+        is_ee = np.array([CELL_TYPE[PATHWAYS[i].post] == "E" for i in pw])
+        return is_ee  # numpy: a cached jax array would leak from the first trace that built it
+
+    @cached_property
+    def scaling_tables(self):
+        """Per synapse: |AMPA| + |NMDA| or |GABA| base weight (mV), zero for P->ES (scaling counts the 512 network
+        cells only, as in the original), and the total S0 of those base weights."""
+        pw = self.net.layout.pathway_of_synapse()
+        base = np.array([0.0 if PATHWAYS[i].pre == "P" else abs(PATHWAYS[i].weight) + abs(PATHWAYS[i].nmda_weight)
+                         for i in pw], np.float32)
+        return base, float(base.sum())  # numpy, see plastic_tables
+
+    # -- pieces ------------------------------------------------------------------------------------------------
+    def net_params(self, mp: MetaParams) -> NetworkParams:
+        return NetworkParams(max_plast_t_ms=jnp.asarray(mp.max_plast_t_ms, jnp.float32))
+
+    def init(self, noise_key, wgain, babble: bab.BabblingState, em_rates_hz) -> LoopState:
+        """State at the start of a run (an epoch or the test): cells at rest, arm at the start posture."""
+        arm_state = self.arm.init(self.start_q)
+        net = self.net.init(noise_key, wgain=wgain, em_rates_hz=em_rates_hz)
+        net = self.net.set_lengths(net, self.arm.observe(arm_state).proprio)
+        err0 = jnp.linalg.norm(self.arm.observe(arm_state).hand - self.target_m)
+        return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), babble=babble,
+                         err_hist_m=jnp.stack([err0, err0]), last_rl_ms=jnp.zeros((), jnp.float32),
+                         last_scaling_ms=jnp.zeros((), jnp.float32))
+
+    def _move_arm(self, arm_state, u):
+        def body(s, _):
+            return self.arm.step(s, u), None
+
+        return jax.lax.scan(body, arm_state, None, length=self.arm_steps)[0]
+
+    def interval(self, wiring, state: LoopState, key, mp: MetaParams, learn: bool):
+        """One 10 ms interface period (see module docstring). ``learn`` is static."""
+        c = self.config
+        counts_before = state.net.spike_count
+        net, _ = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval, collect=False)
+        t_ms = self.net.time_ms(net)
+        em_counts = ro.em_group_counts(c.network, net.spike_count - counts_before)
+        readout = ro.push(state.readout, em_counts)
+        u = ro.excitation(c.network, readout, v_em_max=mp.v_em_max, window_ms=mp.mcmd_spk_wd_ms)
+        arm_state = self._move_arm(state.arm, u)
+        obs = self.arm.observe(arm_state)
+        err = jnp.linalg.norm(obs.hand - self.target_m)
+        net = self.net.set_lengths(net, obs.proprio)
+        signal = jnp.zeros((), jnp.float32)
+        babble, last_rl, last_scaling = state.babble, state.last_rl_ms, state.last_scaling_ms
+        if learn:
+            due = crit.rl_update_due(t_ms, state.last_rl_ms, mp.rl_dt_ms)
+            signal = jnp.where(due, crit.critic_signal(state.err_hist_m[0], state.err_hist_m[1]), 0.0)
+            if c.plasticity:
+                n_plastic = self.net.layout.n_plastic
+                is_ee = self.plastic_tables
+                maxw = jnp.where(is_ee, mp.plast_ee_maxw, mp.plast_ei_maxw)
+                w_plastic, pdope = stdp.dopamine_update(
+                    net.wgain[:n_plastic], net.pdope_ms, True, maxw, mp.learn_rate, t_ms, signal,
+                    mp.max_elig_tr_dur_ms, config=c.eligibility)
+                net = net._replace(wgain=net.wgain.at[:n_plastic].set(w_plastic), pdope_ms=pdope)
+                # Global synaptic scaling (spec §4): if the weighted total S grew beyond the initial S0, every gain
+                # is multiplied by S0/S. Two dot products: the original's per-cell bookkeeping only excludes cells
+                # whose outgoing gains are all exactly 0, which soft-bounded multiplicative updates never reach.
+                base, s0 = self.scaling_tables
+                factor = s0 / jnp.maximum(jnp.dot(base, net.wgain), 1e-12)
+                scale_due = (t_ms - state.last_scaling_ms) >= mp.syn_scaling_dt_ms
+                scaled = jnp.where(base > 0, net.wgain * factor, net.wgain)  # P->ES inputs are not INTF6 synapses
+                net = net._replace(wgain=jnp.where(scale_due & (factor < 1.0), scaled, net.wgain))
+                last_scaling = jnp.where(scale_due, t_ms, state.last_scaling_ms)
+            new_babble, rates = bab.babble(key, state.babble, t_ms, mp, config=c.babbling)
+            babble = jax.tree_util.tree_map(lambda a, b: jnp.where(due, a, b), new_babble, state.babble)
+            net = self.net.set_em_rates(net, jnp.where(due, rates, state.babble.rates_hz))
+            last_rl = jnp.where(due, t_ms, state.last_rl_ms)
+        state = LoopState(net=net, arm=arm_state, readout=readout, babble=babble,
+                          err_hist_m=jnp.stack([state.err_hist_m[1], err]), last_rl_ms=last_rl,
+                          last_scaling_ms=last_scaling)
+        return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal)
+
+    def run(self, wiring, state: LoopState, key, mp: MetaParams, n_intervals: int, learn: bool):
+        """``n_intervals`` interface periods by ``lax.scan``. Returns (state, IntervalRecord time-major)."""
+        def body(s, k):
+            return self.interval(wiring, s, k, mp, learn)
+
+        return jax.lax.scan(body, state, jax.random.split(key, n_intervals))

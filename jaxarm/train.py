@@ -1,0 +1,149 @@
+"""Training and testing in the PureJaxRL style: ``make_train(config)`` returns pure functions.
+
+    train_fns = make_train(LoopConfig(arm="simple"))
+    trained, history = jax.jit(train_fns.train)(key, MetaParams.original())
+    result = jax.jit(train_fns.test)(key, trained, MetaParams.original())
+
+``train`` and ``test`` are pure functions of (key, [trained,] metaparams): ``vmap`` them over keys (networks) and
+over metaparameter sets alike. ``train`` is ``lax.scan`` over epochs of :func:`TrainFns.epoch`; the command line runs
+the same ``epoch`` function one epoch per call so a killed run resumes from its last completed epoch with identical
+results.
+
+Protocol (spec §6): each epoch is a fresh run of the network (cells, tags and noise streams reset; weights kept) and
+of the arm (start posture); babbling draws continue. The test is 1 s without learning, with every EM group
+receiving ``em_noise_rate_test_hz`` of AMPA noise.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from jaxarm.learning import babbling as bab
+from jaxarm.learning.metaparams import MetaParams
+from jaxarm.loop import POP_NAMES, ClosedLoop, LoopConfig
+
+
+class Trained(NamedTuple):
+    """What training leaves: the wiring (drawn from the key) and the learned gains."""
+
+    wiring: Any
+    wgain: jnp.ndarray        # (n_syn,) dimensionless
+    babble: bab.BabblingState
+    noise_key: jnp.ndarray    # the network's noise key (re-used every epoch by default)
+
+
+class EpochCarry(NamedTuple):
+    trained: Trained
+    key: jnp.ndarray          # babbling key stream
+    epoch: jnp.ndarray        # () int32, epochs completed
+
+
+class EpochSummary(NamedTuple):
+    """Per epoch (leading axis = epoch under scan)."""
+
+    rates_hz: jnp.ndarray          # (6,) mean firing rate of ES, IS, ISL, EM, IM, IML over the epoch, Hz
+    rates_last10s_hz: jnp.ndarray  # (6,) the same over the epoch's last 10 s (the spec §10 convention)
+    mean_wgain: jnp.ndarray        # (n_pathways,) mean gain per pathway at the end of the epoch
+    final_distance_m: jnp.ndarray  # () hand–target distance at the end of the epoch, m
+    min_distance_m: jnp.ndarray    # () closest approach during the epoch, m
+    rewards: jnp.ndarray           # () critic rewards in the epoch
+    punishments: jnp.ndarray       # () critic punishments
+    lost_spikes: jnp.ndarray       # () spike-list overflow (must be 0)
+
+
+class TestResult(NamedTuple):
+    hand_m: jnp.ndarray        # (T + 1, 2) hand positions at t = 0, 10, ..., 1000 ms, m
+    q_rad: jnp.ndarray         # (T + 1, 2) joint angles, rad
+    u: jnp.ndarray             # (T, 4) excitations
+    distance_m: jnp.ndarray    # (T + 1,) hand–target distance, m
+    min_distance_m: jnp.ndarray
+    final_distance_m: jnp.ndarray
+    success: jnp.ndarray       # () bool: entered the success circle
+    rates_hz: jnp.ndarray      # (6,) firing rates in the test, Hz
+    lost_spikes: jnp.ndarray
+
+
+class TrainFns(NamedTuple):
+    loop: ClosedLoop
+    init: Callable            # key -> EpochCarry
+    epoch: Callable           # (carry, mp) -> (carry, EpochSummary)
+    train: Callable           # (key, mp) -> (Trained, EpochSummary stacked over epochs)
+    test: Callable            # (key, Trained, mp) -> TestResult
+
+
+def _pop_rates(loop: ClosedLoop, counts, seconds):
+    pops = loop.pops
+    return jnp.stack([jnp.sum(counts[..., pops.slice(p)], axis=-1) / (loop.config.network.size(p) * seconds)
+                      for p in POP_NAMES])
+
+
+def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
+    loop = ClosedLoop(config)
+    net, task = loop.net, config.task
+    n_intervals = task.epoch_steps
+    last10_intervals = min(n_intervals, round(10.0 / task.update_interval_s))
+    layout = net.layout
+    n_pw = len(layout.in_degree)
+    pathway_of = jnp.asarray(layout.pathway_of_synapse())
+
+    def init(key) -> EpochCarry:
+        k_wire, k_noise, k_babble = jax.random.split(key, 3)
+        wiring = net.make_wiring(k_wire)
+        trained = Trained(wiring=wiring, wgain=jnp.ones((layout.n_syn,), jnp.float32),
+                          babble=bab.init_babbling(config.babbling), noise_key=k_noise)
+        return EpochCarry(trained=trained, key=k_babble, epoch=jnp.zeros((), jnp.int32))
+
+    def epoch(carry: EpochCarry, mp: MetaParams):
+        tr = carry.trained
+        noise_key = jax.random.fold_in(tr.noise_key, carry.epoch) if config.reseed_noise_each_epoch else tr.noise_key
+        babble = bab.start_epoch(tr.babble)
+        state = loop.init(noise_key, tr.wgain, babble, babble.rates_hz)
+        k_epoch = jax.random.fold_in(carry.key, carry.epoch)
+        # Run all but the last 10 s, snapshot the spike counts, run the rest: rates over the last 10 s as the spec.
+        k1, k2 = jax.random.split(k_epoch)
+        state, rec1 = loop.run(tr.wiring, state, k1, mp, n_intervals - last10_intervals, learn=True)
+        counts_mid = state.net.spike_count
+        state, rec2 = loop.run(tr.wiring, state, k2, mp, last10_intervals, learn=True)
+        rec = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), rec1, rec2)
+        counts = state.net.spike_count
+        dist = jnp.linalg.norm(rec.hand_m - loop.target_m, axis=-1)
+        wgain = state.net.wgain
+        mean_w = jax.ops.segment_sum(wgain, pathway_of, num_segments=n_pw) / jnp.asarray(
+            [layout.config.size(pw.post) * layout.in_degree[pw.name] for pw in _pathways()], jnp.float32)
+        summary = EpochSummary(
+            rates_hz=_pop_rates(loop, counts, task.epoch_duration_s),
+            rates_last10s_hz=_pop_rates(loop, counts - counts_mid, last10_intervals * task.update_interval_s),
+            mean_wgain=mean_w, final_distance_m=dist[-1], min_distance_m=dist.min(),
+            rewards=jnp.sum(rec.critic > 0), punishments=jnp.sum(rec.critic < 0),
+            lost_spikes=state.net.counters.lost_spikes)
+        trained = tr._replace(wgain=wgain, babble=state.babble)
+        return EpochCarry(trained=trained, key=carry.key, epoch=carry.epoch + 1), summary
+
+    def train(key, mp: MetaParams):
+        carry = init(key)
+        carry, history = jax.lax.scan(lambda c, _: epoch(c, mp), carry, None, length=task.epochs)
+        return carry.trained, history
+
+    def test(key, trained: Trained, mp: MetaParams) -> TestResult:
+        rates = bab.em_noise_rates_in_test(mp)
+        # The original re-seeds the noise streams identically at every run(), the test included.
+        state = loop.init(trained.noise_key, trained.wgain, trained.babble, rates)
+        hand0, q0 = loop.arm.observe(state.arm).hand, loop.arm.observe(state.arm).q
+        state, rec = loop.run(trained.wiring, state, key, mp, task.test_steps, learn=False)
+        hand = jnp.concatenate([hand0[None], rec.hand_m])
+        q = jnp.concatenate([q0[None], rec.q_rad])
+        dist = jnp.linalg.norm(hand - loop.target_m, axis=-1)
+        return TestResult(hand_m=hand, q_rad=q, u=rec.u, distance_m=dist, min_distance_m=dist.min(),
+                          final_distance_m=dist[-1], success=jnp.any(dist <= task.success_radius_m),
+                          rates_hz=_pop_rates(loop, state.net.spike_count, task.test_duration_s),
+                          lost_spikes=state.net.counters.lost_spikes)
+
+    return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=test)
+
+
+def _pathways():
+    from jaxarm.network.wiring import PATHWAYS
+
+    return PATHWAYS
