@@ -41,13 +41,16 @@ class NetworkConfig:
             code does not clip (spec §3, §11.7); False reproduces it.
         readout_bins: length of the EM spike-count history, in interface periods; must cover the readout window
             plus its lag (default 76.08 + 50 ms).
-        spike_capacity: spike-list length per step (lax.top_k). Spikes beyond it in one step are delivered by
-            further passes of the same list in that step (exact); each extra pass is counted in
-            ``State.counters.extra_passes`` and a pass limit (``max_passes``) bounds the work.
-        max_passes: most spike-list passes per step; spikes still left after them are lost and counted in
-            ``State.counters.lost_spikes`` (a test fails if any are).
-        out_capacity: out-degree capacity of the per-presynaptic-cell delivery lists; 0 = derive a bound from the
-            sizes (mean + 8 sd). Synapses beyond it are counted in ``Wiring.out_overflow``.
+        spike_capacity: spike-list length per step (lax.top_k) of each spike group (ES, EM, inhibitory). Spikes
+            beyond it in one step are delivered by further passes in that step (exact); each extra pass is counted
+            in ``State.counters.extra_passes`` and ``max_passes`` bounds the work.
+        block_steps: upper limit on the steps per delivery block (0 = as long as exactness allows, see
+            ``Network.block_steps``; 1 = deliver after every step). Changes speed, not results.
+        max_passes: most spike-list passes per block; spikes still left after them are lost and counted in
+            ``State.counters.lost_spikes`` (a test fails if any are). 0 = enough passes for every cell of the
+            largest group to fire in one block, so nothing can be lost.
+        out_capacity: out-degree capacity of the per-presynaptic-cell delivery rows; 0 = derive one per spike group
+            from the sizes (mean + 6 sd). Synapses beyond it are counted in ``Wiring.out_overflow``.
         noise_max_rate_hz: highest background rate the Poisson noise tables must represent, Hz (sets how many
             events per step per receptor are representable, see ``noise_kmax``).
         plasticity_bookkeeping: keep each cell's last spike time and tag plastic synapses on postsynaptic spikes
@@ -65,8 +68,9 @@ class NetworkConfig:
     p_start_ms: float = 1.0
     readout_clip: bool = True
     readout_bins: int = 16
-    spike_capacity: int = 8
-    max_passes: int = 64
+    spike_capacity: tuple[int, int, int] = (4, 2, 2)
+    block_steps: int = 0
+    max_passes: int = 0
     out_capacity: int = 0
     noise_max_rate_hz: float = 250.0
     plasticity_bookkeeping: bool = True
@@ -98,8 +102,13 @@ class NetworkConfig:
         if not isinstance(self.readout_clip, bool):
             raise ConfigError(f"NetworkConfig.readout_clip = {self.readout_clip!r}: must be True or False")
         check_range(self, "readout_bins", 2, 1000, integer=True)
-        check_range(self, "spike_capacity", 1, 4096, integer=True)
-        check_range(self, "max_passes", 1, 4096, integer=True)
+        if (not isinstance(self.spike_capacity, tuple) or len(self.spike_capacity) != 3
+                or not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= 4096
+                           for k in self.spike_capacity)):
+            raise ConfigError(f"NetworkConfig.spike_capacity = {self.spike_capacity!r}: a tuple of 3 integers in "
+                              "[1, 4096] (ES, EM, inhibitory spike groups)")
+        check_range(self, "block_steps", 0, 10_000, integer=True)
+        check_range(self, "max_passes", 0, 100_000, integer=True)
         check_range(self, "out_capacity", 0, 1_000_000, integer=True)
         check_range(self, "noise_max_rate_hz", 0.0, 5000.0, lo_open=True)
         if not isinstance(self.plasticity_bookkeeping, bool):

@@ -23,7 +23,8 @@ State layout (every field may carry leading batch axes under ``vmap``):
   update it with array ops.
 * ``pdope_ms``: (n_plastic,) float32 tag time of every plastic synapse (synapse k < n_plastic; -1e9 = untagged),
   ms since the start of the run. Written on postsynaptic spikes when ``plasticity_bookkeeping`` is on.
-* ``last_spike_ms``: (n_all,) float32 last spike time of every cell in this run, ms (-1e9 = none).
+* ``last_spike_ms``, ``prev_spike_ms``: (n_all,) float32 last and second-to-last spike time of every cell in this
+  run, ms (-1e9 = none).
 * ``spike_count``: (n_all,) int32 spikes of every cell since the start of the run.
 * ``counters``: :class:`~jaxarm.network.synapses.Counters` (extra spike-list passes, lost spikes).
 
@@ -46,7 +47,7 @@ from jaxarm.network import noise as noise_mod
 from jaxarm.network import proprio as proprio_mod
 from jaxarm.network import synapses as syn_mod
 from jaxarm.network.populations import Populations
-from jaxarm.network.wiring import Wiring, WiringLayout, make_wiring
+from jaxarm.network.wiring import PATHWAYS, SPIKE_GROUPS, Wiring, WiringLayout, make_wiring
 
 #: Pre-before-post pairing window of tagging, ms (maxplastt, main.hoc L46).
 MAX_PLAST_T_MS = 69.57
@@ -71,6 +72,7 @@ class State(NamedTuple):
     wgain: jnp.ndarray
     pdope_ms: jnp.ndarray
     last_spike_ms: jnp.ndarray
+    prev_spike_ms: jnp.ndarray
     spike_count: jnp.ndarray
     counters: syn_mod.Counters
 
@@ -112,6 +114,22 @@ class Network:
         return max(self.config.steps(5.0) + 1, self.chunk_steps + self.p_delay_steps)
 
     @cached_property
+    def max_passes(self) -> int:
+        """Spike-list passes allowed per block: the configured limit, or (0) enough for every cell to fire."""
+        if self.config.max_passes:
+            return self.config.max_passes
+        sizes = [sum(self.config.size(p) for p in g) for g in SPIKE_GROUPS]
+        return max(-(-n // k) for n, k in zip(sizes, self.config.spike_capacity))
+
+    @cached_property
+    def delivery_shape(self) -> syn_mod.DeliveryShape:
+        lay, c = self.layout, self.config
+        slices = tuple(tuple((self.pops.start[p], self.pops.stop[p]) for p in g) for g in SPIKE_GROUPS)
+        return syn_mod.DeliveryShape(group_slices=slices, excitatory=lay.group_is_excitatory,
+                                     capacity=tuple(c.spike_capacity), max_passes=self.max_passes, n_slots=self.n_slots,
+                                     n_cells=c.n_cells, n_plastic=lay.n_plastic, bookkeeping=c.plasticity_bookkeeping)
+
+    @cached_property
     def p_synapses(self) -> slice:
         start = self.layout.offset["P->ES"]
         return slice(start, start + self.config.size("ES") * self.layout.in_degree["P->ES"])
@@ -133,6 +151,7 @@ class Network:
             wgain=jnp.ones((lay.n_syn,), jnp.float32) if wgain is None else jnp.asarray(wgain, jnp.float32),
             pdope_ms=jnp.full((lay.n_plastic if c.plasticity_bookkeeping else 0,), syn_mod.NO_TAG_MS, jnp.float32),
             last_spike_ms=jnp.full((c.n_all,), syn_mod.NEVER_SPIKED_MS, jnp.float32),
+            prev_spike_ms=jnp.full((c.n_all,), syn_mod.NEVER_SPIKED_MS, jnp.float32),
             spike_count=jnp.zeros((c.n_all,), jnp.int32),
             counters=syn_mod.Counters(jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32)),
         )
@@ -148,13 +167,13 @@ class Network:
     def time_ms(self, state: State):
         return state.step.astype(jnp.float32) * self.config.dt_ms
 
-    def _network_step(self, wiring: Wiring, state: State, params: NetworkParams):
-        """One clock step of the network cells (P input is already in the ring). Returns (state, spikes (n_all,))."""
+    def _cell_step(self, state: State, spike_step):
+        """One clock step of every cell, reading its input from the ring (no delivery). ``spike_step``: (n_cells,)
+        step of each cell's spike in the current block (-1 none). Returns (state, spike_step, spikes (n_all,))."""
         c = self.config
         n = c.n_cells
         m = state.step + 1
         t_ms = m.astype(jnp.float32) * c.dt_ms
-
         syn_in, ring = syn_mod.read_slot(state.ring, m, self.n_slots, n)
         counts = noise_mod.noise_counts(state.noise, m)
         drive = counts * self.noise_weights  # (3, n): AMPA, GABA-prox, GABA-dist
@@ -163,31 +182,64 @@ class Network:
             self.cell_constants)
         p, p_spiked = proprio_mod.p_step(state.p, m)
         spiked = jnp.concatenate([net_spiked, p_spiked])
+        state = state._replace(
+            step=m, cells=cells, p=p, ring=ring,
+            prev_spike_ms=jnp.where(spiked, state.last_spike_ms, state.prev_spike_ms),
+            last_spike_ms=jnp.where(spiked, t_ms, state.last_spike_ms),
+            spike_count=state.spike_count + spiked.astype(jnp.int32))
+        return state, jnp.where(net_spiked, m, spike_step), spiked
 
-        last_spike_ms = jnp.where(spiked, t_ms, state.last_spike_ms)
-        ring, pdope_ms, counters = syn_mod.deliver_spikes(
-            ring, state.pdope_ms, state.counters, net_spiked, m, t_ms, last_spike_ms, wiring, state.wgain,
-            params.max_plast_t_ms, capacity=c.spike_capacity, max_passes=c.max_passes, n_slots=self.n_slots,
-            n_cells=n, bookkeeping=c.plasticity_bookkeeping)
-        new = State(step=m, cells=cells, p=p, noise=state.noise, ring=ring, wgain=state.wgain, pdope_ms=pdope_ms,
-                    last_spike_ms=last_spike_ms, spike_count=state.spike_count + spiked.astype(jnp.int32),
-                    counters=counters)
-        return new, spiked
+    @cached_property
+    def block_steps(self) -> int:
+        """Steps per delivery block: the largest divisor of :attr:`chunk_steps` that is no longer than the shortest
+        network delay (so a block's spikes all arrive after it) nor the shortest refractory period (so a cell fires
+        at most once per block)."""
+        d_min = min(self.config.steps(pw.delay_ms[0]) for pw in PATHWAYS if pw.pre != "P")
+        limit = max(1, min(d_min, int(self.cell_constants.n_refractory.min())))
+        if self.config.block_steps:
+            limit = min(limit, self.config.block_steps)
+        return max(k for k in range(1, self.chunk_steps + 1) if self.chunk_steps % k == 0 and k <= limit)
+
+    def _block(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
+        """``n_steps`` (<= block_steps) cell steps, then delivery of their spikes."""
+        n = self.config.n_cells
+
+        def body(carry, _):
+            s, spike_step = carry
+            s, spike_step, spiked = self._cell_step(s, spike_step)
+            return (s, spike_step), (spiked if collect else None)
+
+        (state, spike_step), spikes = jax.lax.scan(body, (state, jnp.full((n,), -1, jnp.int32)), None,
+                                                   length=n_steps)
+        ring, pdope_ms, counters = syn_mod.deliver_block(
+            state.ring, state.pdope_ms, state.counters, spike_step, state.last_spike_ms, state.prev_spike_ms, wiring,
+            state.wgain, params.max_plast_t_ms, self.delivery_shape, self.config.dt_ms)
+        return state._replace(ring=ring, pdope_ms=pdope_ms, counters=counters), spikes
 
     def _chunk(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
-        """Write the P input of the next ``n_steps`` (<= chunk_steps) steps, then scan the network steps."""
+        """Write the P input of the next ``n_steps`` (<= chunk_steps) steps, then run them block by block."""
         min_interval = self.config.steps(1000.0 / self.config.p_rate_hz)
         ring = syn_mod.deliver_p_window(
             state.ring, state.p.next_step, state.p.interval_steps, state.step, n_steps, wiring, state.wgain,
             self.p_synapses, self.pops.start["P"], proprio_mod.NEVER_STEPS, max_spikes=n_steps // min_interval + 1,
             n_slots=self.n_slots, n_cells=self.config.n_cells)
         state = state._replace(ring=ring)
+        full, rest = divmod(n_steps, self.block_steps)
+        outs = []
+        if full:
+            def block(s, _):
+                return self._block(wiring, s, params, self.block_steps, collect)
 
-        def body(s, _):
-            s, spiked = self._network_step(wiring, s, params)
-            return s, (spiked if collect else None)
-
-        return jax.lax.scan(body, state, None, length=n_steps)
+            state, spikes = jax.lax.scan(block, state, None, length=full)
+            if collect:
+                outs.append(spikes.reshape((-1,) + spikes.shape[2:]))
+        if rest:
+            state, spikes = self._block(wiring, state, params, rest, collect)
+            if collect:
+                outs.append(spikes)
+        if not collect:
+            return state, None
+        return state, outs[0] if len(outs) == 1 else jnp.concatenate(outs)
 
     def step(self, wiring: Wiring, state: State, params: NetworkParams):
         """Advance one clock step. Returns (state, spikes (n_all,) bool of this step). :meth:`run` is faster for

@@ -2,21 +2,36 @@
 
 Ring buffer: a flat float32 array of ``n_slots * 4 * n_cells + n_cells`` entries; slot s (step m lands in slot
 m % n_slots) holds, channel-major, the summed weights arriving at each cell in that step: rows AMPA-distal,
-NMDA-distal, GABA-proximal, GABA-distal (mV). ``n_slots = max delay + 1``. The trailing n_cells entries are a pad
-that only ever receives zeros (the NMDA write of a GABA synapse, see below), so every index is in bounds.
+NMDA-distal, GABA-proximal, GABA-distal (mV). The trailing n_cells entries are a pad, so the NMDA write of any
+synapse (target + n_cells) stays in bounds.
 
-Delivery of the network spikes of step m (cost proportional to the spike-list length, never to the number of
-synapses):
+Spikes are delivered once per *block* of L steps (L <= the shortest network delay and <= the shortest refractory
+period, so every spike of a block still arrives after the block, and a cell fires at most once per block): the
+cells advance L steps reading the ring, remembering the step of each cell's spike; then the block's spikes are
+delivered, each at its own spike step + delay — exactly what per-step delivery would do, with L times fewer spike
+lists, and lists sized for a block rather than for a step. Work is proportional to the spike-list lengths, never to
+the number of synapses. For each spike group (ES; EM; inhibitory cells, :data:`jaxarm.network.wiring.SPIKE_GROUPS`):
 
-1. the spike list: ``lax.top_k`` of the spike vector returns at most ``spike_capacity`` spiking cell ids; unused
-   entries point to a dummy cell (id n_cells) whose delivery row is all dummy synapses of weight 0;
-2. their delivery rows ``out_syn[ids]`` give synapse ids; each synapse adds ``weight * wgain`` to its target channel
-   and ``nmda`` to the NMDA channel of its cell, in slot (m + delay) % n_slots (two flat scatter-adds). A GABA
-   synapse has nmda = 0 and its NMDA write lands, harmlessly, one channel further (or in the pad);
-3. with plasticity bookkeeping, the same list tags the plastic inputs of every listed cell (``pdope = t`` where the
-   presynaptic cell fired within the pairing window before t; spec §4), by a scatter-max (tags only move forward);
-4. if more cells spiked than the list holds, further passes take the next ones in the same step (exact; each extra
-   pass is counted). After ``max_passes`` passes anything left is lost and counted — a test fails on that.
+1. the spike list: ``lax.top_k`` of the group's "fired in this block" vector gives at most ``spike_capacity[g]``
+   cells; unused entries point to the group's "no spike" row, whose synapses have weight 0;
+2. their rows of the group tables give, per synapse, target channel, delay, base weight and NMDA weight; the gain
+   ``wgain`` of each synapse multiplies the AMPA/GABA weight; two flat scatter-adds (one for inhibitory groups,
+   which have no NMDA) write them into slot (spike step + delay) % n_slots;
+3. with plasticity bookkeeping, the same list tags the plastic inputs of every listed cell: ``pdope = t`` (its spike
+   time) where the presynaptic cell's last spike at or before t was at most ``max_plast_t_ms`` earlier (spec §4),
+   by a scatter-max (tags only move forward in time, so max = overwrite). A presynaptic cell that fired later in the
+   same block is looked up by its previous spike (cells keep their last two spike times);
+4. if a group had more spikes than its list holds, further passes take the next ones in the same block (exact;
+   every extra pass is counted in :class:`Counters`). After ``max_passes`` passes anything left is lost and
+   counted — a test fails on that.
+
+Speed notes (measured on the 2-core CPU, 60 networks; see benchmarks/network.py):
+
+* the slot is cleared with zeros made data-dependent on the slot just read, else XLA copies the ring every step;
+* under ``vmap`` a ``while_loop`` with a per-network predicate selects its whole carry (ring, tags) every pass;
+  :func:`deliver_spikes` is therefore a ``custom_vmap`` whose batched rule runs the extra passes for all networks
+  at once while any network needs one (networks with nothing left deliver "no spike" rows of zeros) and writes
+  with one scatter over the flattened batch. Under nested ``vmap`` it stays exact but loses that advantage.
 
 P -> ES input (:func:`deliver_p_window`): P trains change only when the loop sets new muscle lengths, so at the start
 of every chunk of steps the P spikes of the whole chunk are known; their synapses (4224, each P->ES synapse once per
@@ -25,12 +40,13 @@ all-P volley at 1 ms is delivered exactly. The ring therefore spans a chunk plus
 """
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from jaxarm.network.wiring import DELAY_BITS, N_CHANNELS, Wiring
+from jaxarm.network.wiring import DELAY_BITS, N_CHANNELS, GroupTables, Wiring
 
 #: ``pdope`` of an untagged synapse and last spike time of a cell that has not fired in this run, ms
 #: (the original's -1e9; same convention as :mod:`jaxarm.learning.stdp`).
@@ -39,7 +55,7 @@ NEVER_SPIKED_MS = -1e9
 
 
 class Counters(NamedTuple):
-    """Capacity statistics since the start of the run (int32 scalars)."""
+    """Capacity statistics since the start of the run (int32 scalars per network)."""
 
     extra_passes: jnp.ndarray  # spike-list passes beyond the first (spikes delivered exactly, at extra cost)
     lost_spikes: jnp.ndarray   # spikes never delivered because max_passes was reached (must stay 0)
@@ -62,69 +78,146 @@ def read_slot(ring, step, n_slots: int, n_cells: int):
     return row.reshape(N_CHANNELS, n_cells), ring
 
 
-def spike_list(remaining, capacity: int, dummy: int):
-    """Up to ``capacity`` ids of cells with ``remaining > 0`` (lowest ids first); empty entries = ``dummy``."""
-    vals, ids = jax.lax.top_k(remaining, capacity)
-    return jnp.where(vals > 0, ids, dummy)
+class DeliveryShape(NamedTuple):
+    """Static parameters of delivery (hashable)."""
+
+    group_slices: tuple          # per group: tuple of (start, stop) global-id ranges, concatenated
+    excitatory: tuple            # per group: has NMDA
+    capacity: tuple              # per group: spike-list length
+    max_passes: int
+    n_slots: int
+    n_cells: int
+    n_plastic: int
+    bookkeeping: bool
 
 
-def deliver(ring, ids, step, wiring: Wiring, wgain, n_slots: int, n_cells: int):
-    """Scatter the synapses of the listed cells into the ring buffer (see module docstring)."""
-    syn = wiring.out_syn[ids]                                # (K, out_capacity)
-    p = wiring.packed[syn]
-    delay = p & ((1 << DELAY_BITS) - 1)
-    target = p >> DELAY_BITS
-    w = wiring.weight[syn] * jnp.take(wgain, syn, mode="clip")
-    slot = jax.lax.rem(step + delay, n_slots)
-    index = (slot * (N_CHANNELS * n_cells) + target).reshape(-1)
-    ring = ring.at[index].add(w.reshape(-1), mode="promise_in_bounds")
-    ring = ring.at[index + n_cells].add(wiring.nmda[syn].reshape(-1), mode="promise_in_bounds")
-    return ring
+def _group_values(per_cell, shape: DeliveryShape):
+    """Per group, the (..., n_group) slice of a per-network-cell array."""
+    out = []
+    for ranges in shape.group_slices:
+        parts = [per_cell[..., a:b] for a, b in ranges]
+        out.append(parts[0] if len(parts) == 1 else jnp.concatenate(parts, axis=-1))
+    return out
 
 
-def tag(pdope_ms, ids, t_ms, last_spike_ms, wiring: Wiring, window_ms):
-    """Pre-before-post tags for the listed postsynaptic cells: ``pdope = t`` on each plastic input whose
-    presynaptic cell last fired at most ``window_ms`` before t (and at all in this run)."""
-    syn = wiring.in_plastic[ids]                             # (K, width); padding = n_plastic (dropped)
-    last = jnp.take(last_spike_ms, wiring.in_plastic_pre[ids], mode="fill", fill_value=NEVER_SPIKED_MS)
-    hit = (last >= 0.0) & (t_ms - last <= window_ms)
-    value = jnp.where(hit, t_ms, NO_TAG_MS).astype(pdope_ms.dtype)
-    return pdope_ms.at[syn.reshape(-1)].max(value.reshape(-1), mode="drop")
+def _one_pass(remaining, spike_step, last_spike_ms, prev_spike_ms, wgain, window_ms, groups, shape: DeliveryShape,
+              dt_ms: float):
+    """One network, one pass: take up to capacity[g] of the remaining spikes per group. Returns (ring index, ring
+    value, tag index, tag value, remaining); the tag arrays are empty without bookkeeping."""
+    n = shape.n_cells
+    ring_i, ring_v, tag_i, tag_v, left = [], [], [], [], []
+    for g, (tables, rem, steps) in enumerate(zip(groups, remaining, spike_step)):
+        tables: GroupTables
+        n_g = rem.shape[-1]
+        vals, ids = jax.lax.top_k(rem, shape.capacity[g])
+        ids = jnp.where(vals > 0, ids, n_g)                     # n_g = the "no spike" row
+        s = jnp.take(steps, ids, mode="fill", fill_value=0)     # (K,) spike step of each listed cell
+        packed = tables.out_packed[ids]                         # (K, C) row gathers
+        syn = tables.out_syn[ids]
+        w = tables.out_weight[ids] * jnp.take(wgain, syn, mode="clip")
+        delay = packed & ((1 << DELAY_BITS) - 1)
+        index = jax.lax.rem(s[:, None] + delay, shape.n_slots) * (N_CHANNELS * n) + (packed >> DELAY_BITS)
+        ring_i.append(index.reshape(-1))
+        ring_v.append(w.reshape(-1))
+        if shape.excitatory[g]:
+            ring_i.append(index.reshape(-1) + n)
+            ring_v.append(tables.out_nmda[ids].reshape(-1))
+        if shape.bookkeeping:
+            t_post = (s.astype(jnp.float32) * dt_ms)[:, None]
+            pre = tables.in_plastic_pre[ids]
+            last = jnp.take(last_spike_ms, pre, mode="fill", fill_value=NEVER_SPIKED_MS)
+            prev = jnp.take(prev_spike_ms, pre, mode="fill", fill_value=NEVER_SPIKED_MS)
+            last = jnp.where(last <= t_post, last, prev)      # the presynaptic spike at or before t_post
+            hit = (last >= 0.0) & (t_post - last <= window_ms)
+            tag_i.append(jnp.minimum(tables.in_plastic[ids], shape.n_plastic - 1).reshape(-1))
+            tag_v.append(jnp.where(hit, t_post, NO_TAG_MS).astype(jnp.float32).reshape(-1))
+        left.append(rem.at[ids].set(0.0, mode="drop"))
+    cat = lambda xs, dt: jnp.concatenate(xs) if xs else jnp.zeros((0,), dt)  # noqa: E731
+    return cat(ring_i, jnp.int32), cat(ring_v, jnp.float32), cat(tag_i, jnp.int32), cat(tag_v, jnp.float32), left
 
 
-def deliver_spikes(ring, pdope_ms, counters: Counters, spiked, step, t_ms, last_spike_ms, wiring: Wiring, wgain,
-                   window_ms, *, capacity: int, max_passes: int, n_slots: int, n_cells: int, bookkeeping: bool):
-    """All delivery (and tagging) for the network spikes ``spiked`` (n_cells,) bool of clock step ``step``;
-    ``last_spike_ms`` (n_all,) already includes this step's spikes."""
+def _deliver_batched(ring, pdope_ms, counters: Counters, spike_step, last_spike_ms, prev_spike_ms, wgain, window_ms,
+                     groups, groups_batched: bool, shape: DeliveryShape, dt_ms: float):
+    """Delivery for a batch: every argument but ``groups`` has a leading batch axis B. ``spike_step``: (B, n_cells)
+    int32 step of each cell's spike in this block, -1 if none."""
+    b, r = ring.shape
+    one_pass = jax.vmap(functools.partial(_one_pass, shape=shape, dt_ms=dt_ms),
+                        in_axes=(0, 0, 0, 0, 0, 0, 0 if groups_batched else None))
+    ring_offset = (jnp.arange(b, dtype=jnp.int32) * r)[:, None]
+    p = pdope_ms.shape[-1]
+    tag_offset = (jnp.arange(b, dtype=jnp.int32) * p)[:, None]
+    steps = _group_values(spike_step, shape)
 
-    def one_pass(ring, pdope_ms, remaining):
-        ids = spike_list(remaining, capacity, n_cells)
-        ring = deliver(ring, ids, step, wiring, wgain, n_slots, n_cells)
-        if bookkeeping:
-            pdope_ms = tag(pdope_ms, ids, t_ms, last_spike_ms, wiring, window_ms)
-        remaining = remaining.at[ids].set(0.0, mode="drop")
+    def apply(ring, pdope_ms, remaining):
+        ri, rv, ti, tv, remaining = one_pass(remaining, steps, last_spike_ms, prev_spike_ms, wgain, window_ms, groups)
+        # one scatter over the flattened batch (about 2x faster than a batched scatter on XLA:CPU)
+        ring = ring.reshape(-1).at[(ri + ring_offset).reshape(-1)].add(
+            rv.reshape(-1), mode="promise_in_bounds").reshape(b, r)
+        if shape.bookkeeping:
+            pdope_ms = pdope_ms.reshape(-1).at[(ti + tag_offset).reshape(-1)].max(
+                tv.reshape(-1), mode="promise_in_bounds").reshape(b, p)
         return ring, pdope_ms, remaining
 
-    remaining = spiked.astype(jnp.float32)
-    ring, pdope_ms, remaining = one_pass(ring, pdope_ms, remaining)
+    def left_per_network(remaining):
+        return sum(jnp.sum(x > 0, axis=-1, dtype=jnp.int32) for x in remaining)
+
+    remaining = [(x >= 0).astype(jnp.float32) for x in steps]
+    ring, pdope_ms, remaining = apply(ring, pdope_ms, remaining)
 
     def more(carry):
-        _, _, remaining, passes = carry
-        return (passes < max_passes) & jnp.any(remaining > 0)
+        _, _, remaining, passes, _ = carry
+        return (passes < shape.max_passes) & jnp.any(left_per_network(remaining) > 0)
 
     def again(carry):
-        ring, pdope_ms, remaining, passes = carry
-        ring, pdope_ms, remaining = one_pass(ring, pdope_ms, remaining)
-        return ring, pdope_ms, remaining, passes + 1
+        ring, pdope_ms, remaining, passes, extra = carry
+        extra = extra + (left_per_network(remaining) > 0).astype(jnp.int32)
+        ring, pdope_ms, remaining = apply(ring, pdope_ms, remaining)
+        return ring, pdope_ms, remaining, passes + 1, extra
 
-    if max_passes > 1:
-        ring, pdope_ms, remaining, passes = jax.lax.while_loop(
-            more, again, (ring, pdope_ms, remaining, jnp.ones((), jnp.int32)))
-    else:
-        passes = jnp.ones((), jnp.int32)
-    counters = Counters(extra_passes=counters.extra_passes + passes - 1,
-                        lost_spikes=counters.lost_spikes + jnp.sum(remaining > 0).astype(jnp.int32))
+    extra = jnp.zeros((b,), jnp.int32)
+    if shape.max_passes > 1:
+        ring, pdope_ms, remaining, _, extra = jax.lax.while_loop(
+            more, again, (ring, pdope_ms, remaining, jnp.ones((), jnp.int32), extra))
+    counters = Counters(extra_passes=counters.extra_passes + extra,
+                        lost_spikes=counters.lost_spikes + left_per_network(remaining))
     return ring, pdope_ms, counters
+
+
+@functools.lru_cache(maxsize=None)
+def _make_deliver(shape: DeliveryShape, dt_ms: float):
+    n_state = 7  # per-network arguments before window_ms and groups
+
+    @jax.custom_batching.custom_vmap
+    def deliver(ring, pdope_ms, counters, spike_step, last_spike_ms, prev_spike_ms, wgain, window_ms, groups):
+        args = jax.tree_util.tree_map(lambda x: jnp.asarray(x)[None], (
+            ring, pdope_ms, counters, spike_step, last_spike_ms, prev_spike_ms, wgain, window_ms))
+        out = _deliver_batched(*args, groups, False, shape, dt_ms)
+        return jax.tree_util.tree_map(lambda x: x[0], out)
+
+    @deliver.def_vmap
+    def rule(axis_size, in_batched, *args):
+        per_network, groups = args[:n_state + 1], args[n_state + 1]
+
+        def batch(x, flag):
+            return x if flag else jnp.broadcast_to(x, (axis_size,) + jnp.shape(x))
+
+        per_network = jax.tree_util.tree_map(batch, tuple(per_network), tuple(in_batched[:n_state + 1]))
+        groups_batched = any(jax.tree_util.tree_leaves(in_batched[n_state + 1]))
+        if groups_batched:
+            groups = jax.tree_util.tree_map(batch, groups, in_batched[n_state + 1])
+        out = _deliver_batched(*per_network, groups, groups_batched, shape, dt_ms)
+        return out, jax.tree_util.tree_map(lambda _: True, out)
+
+    return deliver
+
+
+def deliver_block(ring, pdope_ms, counters: Counters, spike_step, last_spike_ms, prev_spike_ms, wiring: Wiring,
+                  wgain, window_ms, shape: DeliveryShape, dt_ms: float):
+    """Deliver (and tag) the spikes of one block. ``spike_step``: (n_cells,) int32 step of each cell's spike in the
+    block (-1: none); ``last_spike_ms``/``prev_spike_ms``: (n_all,) the last two spike times of every cell, ms,
+    including the block. Returns (ring, pdope_ms, counters)."""
+    return _make_deliver(shape, float(dt_ms))(ring, pdope_ms, counters, spike_step, last_spike_ms, prev_spike_ms,
+                                              wgain, jnp.asarray(window_ms, jnp.float32), tuple(wiring.groups))
 
 
 def deliver_p_window(ring, next_step, interval_steps, first_step, n_steps: int, wiring: Wiring, wgain, p_synapses: slice,

@@ -17,13 +17,15 @@ Layout (``Wiring``, every array may carry leading batch axes under ``vmap``):
   ``target``: flat index ``channel * n_cells + post`` into one ring-buffer slot (channels: 0 AMPA-distal,
   1 NMDA-distal, 2 GABA-proximal, 3 GABA-distal); ``packed``: ``target << 10 | delay_steps`` (one gather fetches
   both on the hot path).
-* ``out_syn``: (n_cells + 1, out_capacity) synapse ids of every network cell (its delivery list), padded with the
-  dummy synapse ``n_syn`` (zero weight). Row n_cells belongs to a dummy cell with no synapses. P -> ES synapses are
-  not in these lists: P trains are known in advance and are delivered once per chunk of steps
-  (:func:`jaxarm.network.synapses.deliver_p_window`).
-* ``in_plastic``: (n_cells + 1, max plastic in-degree) plastic synapse ids onto every network cell, padded with
-  ``n_plastic``; ``in_plastic_pre``: their presynaptic global ids, padded with n_all (a cell that never fires).
-  Used for tagging on spikes.
+* Delivery tables, one :class:`GroupTables` per spike group (:data:`SPIKE_GROUPS`: ES; EM; the four inhibitory
+  populations), row r = the r-th cell of the group, plus a last all-padding row for "no spike": ``out_syn`` the
+  synapse ids the cell projects to (padded with the dummy synapse n_syn), and copies of what delivery needs per
+  synapse in the same layout, ``out_packed`` (target << 10 | delay), ``out_weight``, ``out_nmda``, so the hot path
+  reads whole rows (cheap) instead of single elements. ``in_plastic`` lists the plastic synapses onto the cell
+  (padded with n_plastic) and ``in_plastic_pre`` their presynaptic ids (padded with n_all, a cell that never fires),
+  for tagging. P -> ES synapses are in no table: P trains are known in advance and are delivered once per chunk of
+  steps (:func:`jaxarm.network.synapses.deliver_p_window`). Grouping keeps each table as narrow as its cells need
+  (EM cells project to ~46 cells, inhibitory ones to ~135; ES cells have 13 plastic inputs, inhibitory ones ~100).
 * ``out_overflow``: synapses that did not fit ``out_capacity`` (must be 0; counted, never silent).
 
 Weights are the spec's table (base wmat x pathway gain, spec §2); NMDA = NMAMR (0.1) x AMPA.
@@ -105,6 +107,21 @@ PATHWAYS: tuple[Pathway, ...] = (
 )
 
 
+#: Spike groups: populations whose spikes share one spike list and one set of delivery tables.
+SPIKE_GROUPS: tuple[tuple[str, ...], ...] = (("ES",), ("EM",), ("IS", "ISL", "IM", "IML"))
+
+
+class GroupTables(NamedTuple):
+    """Delivery and tagging tables of one spike group (see module docstring). (n_group + 1, width) each."""
+
+    out_syn: jnp.ndarray
+    out_packed: jnp.ndarray
+    out_weight: jnp.ndarray
+    out_nmda: jnp.ndarray
+    in_plastic: jnp.ndarray
+    in_plastic_pre: jnp.ndarray
+
+
 class Wiring(NamedTuple):
     """One network's synapses (see module docstring for the layout). Integer arrays are int32."""
 
@@ -115,10 +132,8 @@ class Wiring(NamedTuple):
     nmda: jnp.ndarray           # (n_syn + 1,) NMDA base weight, mV
     target: jnp.ndarray         # (n_syn + 1,) channel * n_cells + post
     packed: jnp.ndarray         # (n_syn + 1,) target << 10 | delay_steps
-    out_syn: jnp.ndarray        # (n_cells + 1, out_capacity) delivery lists of the network cells
-    in_plastic: jnp.ndarray     # (n_cells + 1, max_in_plastic) plastic synapse ids per postsynaptic cell
-    in_plastic_pre: jnp.ndarray  # (n_cells + 1, max_in_plastic) their presynaptic ids
-    out_overflow: jnp.ndarray   # () synapses left out of out_syn
+    groups: tuple               # GroupTables per SPIKE_GROUPS entry
+    out_overflow: jnp.ndarray   # () synapses left out of the delivery tables (must be 0)
 
 
 @dataclass(frozen=True)
@@ -177,36 +192,49 @@ class WiringLayout:
                          [self.config.size(pw.post) * self.in_degree[pw.name] for pw in PATHWAYS])
 
     @cached_property
-    def out_capacity(self) -> int:
-        """Delivery-list length: ``config.out_capacity`` or mean + 6 sd of the largest expected out-degree of a
-        network cell (out-degrees are sums of independent draws, so exceeding this has probability ~1e-9 per cell;
-        it is counted in ``Wiring.out_overflow`` if it happens)."""
-        if self.config.out_capacity:
-            return self.config.out_capacity
-        worst = 0.0
-        for pre in POPULATIONS[:-1]:
-            mean = sum(self.config.size(pw.post) * self.in_degree[pw.name] / self.config.size(pre)
-                       for pw in PATHWAYS if pw.pre == pre)
-            worst = max(worst, mean + 6.0 * math.sqrt(max(mean, 1.0)))
-        return int(math.ceil(worst))
+    def group_cells(self) -> tuple[np.ndarray, ...]:
+        """Global ids of the cells of each spike group (ascending)."""
+        return tuple(np.concatenate([self.pops.ids(p) for p in g]) for g in SPIKE_GROUPS)
 
     @cached_property
-    def _plastic_inputs(self) -> tuple[np.ndarray, int]:
-        """Static (n_cells + 1, width) table of plastic synapse ids per postsynaptic cell (the draw only fills in
-        which presynaptic cell each one has)."""
-        rows: list[list[int]] = [[] for _ in range(self.config.n_cells + 1)]
+    def group_is_excitatory(self) -> tuple[bool, ...]:
+        return tuple(all(CELL_TYPE[p] == "E" for p in g) for g in SPIKE_GROUPS)
+
+    def mean_out_degree(self, pre: str) -> float:
+        return sum(self.config.size(pw.post) * self.in_degree[pw.name] / self.config.size(pre)
+                   for pw in PATHWAYS if pw.pre == pre)
+
+    @cached_property
+    def out_capacity(self) -> tuple[int, ...]:
+        """Delivery-row width of each spike group: ``config.out_capacity`` or mean + 6 sd of the largest expected
+        out-degree in the group (out-degrees are sums of independent draws, so exceeding this has probability
+        ~1e-9 per cell; it would be counted in ``Wiring.out_overflow``)."""
+        if self.config.out_capacity:
+            return (self.config.out_capacity,) * len(SPIKE_GROUPS)
+        return tuple(int(math.ceil(max(m + 6.0 * math.sqrt(max(m, 1.0)) for m in map(self.mean_out_degree, g))))
+                     for g in SPIKE_GROUPS)
+
+    @cached_property
+    def plastic_inputs(self) -> tuple[np.ndarray, ...]:
+        """Per spike group, the static (n_group + 1, width) table of plastic synapse ids onto each cell, padded
+        with n_plastic (the draw only decides which presynaptic cell each one has)."""
+        rows: dict[int, list[int]] = {}
         for pw in PATHWAYS:
             if not pw.plastic:
                 continue
             k, start = self.in_degree[pw.name], self.pops.start[pw.post]
             for i in range(self.config.size(pw.post)):
                 base = self.offset[pw.name] + i * k
-                rows[start + i].extend(range(base, base + k))
-        width = max(1, max(len(r) for r in rows))
-        table = np.full((len(rows), width), self.n_plastic, dtype=np.int32)
-        for i, r in enumerate(rows):
-            table[i, :len(r)] = r
-        return table, width
+                rows.setdefault(start + i, []).extend(range(base, base + k))
+        tables = []
+        for cells in self.group_cells:
+            width = max(1, max(len(rows.get(int(c), [])) for c in cells))
+            table = np.full((len(cells) + 1, width), self.n_plastic, dtype=np.int32)
+            for r, c in enumerate(cells):
+                ids = rows.get(int(c), [])
+                table[r, :len(ids)] = ids
+            tables.append(table)
+        return tuple(tables)
 
 
 def make_wiring(config: NetworkConfig, key) -> Wiring:
@@ -262,18 +290,23 @@ def _make_wiring_jit(config: NetworkConfig, key) -> Wiring:
     weight = jnp.concatenate(weights + [jnp.zeros(1, jnp.float32)])
     nmda = jnp.concatenate(nmdas + [jnp.zeros(1, jnp.float32)])
     target = jnp.concatenate(targets + [jnp.zeros(1, jnp.int32)])
-    n_net = layout.n_network_syn  # P -> ES (the last pathway) is delivered separately
-    out_syn, overflow = _delivery_lists(pre[:n_net], config.n_cells, layout.out_capacity, layout.n_syn)
-    in_plastic_np, _ = layout._plastic_inputs
-    in_plastic = jnp.asarray(in_plastic_np)
-    # presynaptic id of each plastic input (padding -> the dummy cell n_all, which never spikes)
-    in_plastic_pre = jnp.where(in_plastic < layout.n_plastic, pre[jnp.minimum(in_plastic, layout.n_syn)], n_all)
     if int(config.steps(5.0)) >= 1 << DELAY_BITS:
         raise ValueError(f"dt_ms = {config.dt_ms}: delays of {config.steps(5.0)} steps do not fit {DELAY_BITS} bits")
-    return Wiring(pre=pre, post=post, delay_steps=delay, weight=weight, nmda=nmda, target=target,
-                  packed=(target << DELAY_BITS) | delay,
-                  out_syn=out_syn, in_plastic=in_plastic, in_plastic_pre=in_plastic_pre.astype(jnp.int32),
-                  out_overflow=overflow)
+    packed = (target << DELAY_BITS) | delay
+    n_net = layout.n_network_syn  # P -> ES (the last pathway) is delivered separately
+    by_pre, overflow = _delivery_lists(pre[:n_net], config.n_cells, max(layout.out_capacity), layout.n_syn)
+    groups = []
+    for cells, width, in_plastic_np in zip(layout.group_cells, layout.out_capacity, layout.plastic_inputs):
+        rows = np.append(cells, config.n_cells)  # + the "no spike" row (all padding)
+        out_syn = by_pre[rows, :width]
+        overflow = overflow + jnp.sum(by_pre[rows, width:] < layout.n_syn)
+        in_plastic = jnp.asarray(in_plastic_np)
+        in_pre = jnp.where(in_plastic < layout.n_plastic, pre[jnp.minimum(in_plastic, layout.n_syn)], n_all)
+        groups.append(GroupTables(out_syn=out_syn, out_packed=packed[out_syn], out_weight=weight[out_syn],
+                                  out_nmda=nmda[out_syn], in_plastic=in_plastic,
+                                  in_plastic_pre=in_pre.astype(jnp.int32)))
+    return Wiring(pre=pre, post=post, delay_steps=delay, weight=weight, nmda=nmda, target=target, packed=packed,
+                  groups=tuple(groups), out_overflow=overflow.astype(jnp.int32))
 
 
 def _delivery_lists(pre, n_pre: int, capacity: int, n_syn: int):

@@ -1,0 +1,112 @@
+"""The clock-driven INTF6 cell against the event-driven INTF6 equations of spec §1, computed by hand (in Python floats).
+
+With exactly one input event per clock step the original tests the threshold at every step too, so the two must
+agree: same spike times, same state at every step.
+"""
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxarm.network import NetworkConfig, Populations
+from jaxarm.network import cell as C
+
+TAUS = {"ampa": 20.0, "nmda": 300.0, "gaba_prox": 10.0, "gaba_dist": 20.0}
+
+
+def reference_intf6(events, p, dt):
+    """Event-driven INTF6 (spec §1). ``events``: list of (t, kind, w) with kind in {"E", "FS", "LTS"}.
+
+    Returns (spike times, [(t, Vm, VTHC)] after each event, spike included)."""
+    x = dict(ampa=0.0, nmda=0.0, gaba_prox=0.0, gaba_dist=0.0, ahp=0.0)
+    vthc, vthr, t0, trrs, refractory, refr_end = p["vth"], p["vth"], 0.0, 0.0, False, None
+    spikes, trace = [], []
+    for t, kind, w in events:
+        if refractory and refr_end is not None and refr_end <= t + 1e-9:   # flag-3 event first (same time: first)
+            refractory, trrs = False, refr_end
+        for k, tau in TAUS.items():
+            x[k] *= math.exp(-(t - t0) / tau)
+        x["ahp"] *= math.exp(-(t - t0) / p["tauahp"])
+        if not refractory and vthc > p["vth"]:
+            vthc = p["vth"] + (vthr - p["vth"]) * math.exp(-(t - trrs) / p["taurr"])
+        t0 = t
+        v = min(max(sum(x.values()), p["rmp"]), -p["rmp"])
+        if kind == "E":   # an AMPA + NMDA pair sees the same V
+            x["ampa"] = max(x["ampa"] + w * (1 - v / 65.0), 0.0)
+            if x["nmda"] < 90.0:
+                block = 1.0 / (1.0 + math.exp(-0.062 * (p["rmp"] + v)) * (1.6 / 3.57))
+                x["nmda"] += 0.1 * w * block * (1 - v / 90.0)
+        else:
+            key = "gaba_prox" if kind == "FS" else "gaba_dist"
+            if x[key] > -15.0:
+                x[key] = min(x[key] - w * (1 - v / -15.0), 0.0)
+        vm = min(max(p["rmp"] + sum(x.values()), -90.0), 0.0)
+        if not refractory and vm > vthc and vm <= p["vblock"]:
+            spikes.append(t)
+            x["ahp"] -= p["ahpwt"]
+            vthc = vthr = p["vth"] + p["rrwght"] * (p["vblock"] - p["vth"])
+            refractory, refr_end = True, t + p["refrac"]
+        trace.append((t, min(max(p["rmp"] + sum(x.values()), -90.0), 0.0), vthc))  # after the spike's AHP
+    return spikes, trace
+
+
+def _one_cell_constants(config, index):
+    return C.CellConstants(*(np.asarray(a)[index:index + 1] for a in C.cell_constants(config)))
+
+
+@pytest.mark.parametrize("pop, cell_type", [("ES", "E"), ("IM", "FS"), ("IML", "LTS")])
+def test_clock_driven_cell_matches_event_driven_intf6(pop, cell_type):
+    config = NetworkConfig(dt_ms=0.5)
+    dt = config.dt_ms
+    index = Populations(config).start[pop]
+    const = _one_cell_constants(config, index)
+    rng = np.random.default_rng(7)
+    n = 1200  # 600 ms, one event per step
+    kinds = rng.choice(["E", "FS", "LTS"], size=n, p=[0.7, 0.15, 0.15])
+    weights = np.where(kinds == "E", rng.uniform(0.5, 4.5, n), rng.uniform(0.5, 3.0, n))
+    events = [((k + 1) * dt, kinds[k], float(weights[k])) for k in range(n)]
+    ampa = np.where(kinds == "E", weights, 0.0)
+    inputs = np.stack([ampa, 0.1 * ampa, np.where(kinds == "FS", weights, 0.0),
+                       np.where(kinds == "LTS", weights, 0.0)], axis=1).astype(np.float32)
+
+    @jax.jit
+    def simulate(inputs):
+        def body(s, x):
+            s, spiked = C.cell_step(s, x[0:1], x[1:2], x[2:3], x[3:4], const)
+            return s, (spiked[0], C.membrane_potential(s, const)[0], const.vth[0] + s.vthc_excess[0])
+        return jax.lax.scan(body, C.init_cells(1), jnp.asarray(inputs))[1]
+
+    spiked, vm, vthc = (np.asarray(a) for a in simulate(inputs))
+    ref_spikes, trace = reference_intf6(events, C.CELL_PARAMS[cell_type], dt)
+    ours = [(k + 1) * dt for k in np.flatnonzero(spiked)]
+    assert len(ref_spikes) >= 5, "the input train should make the cell fire"
+    np.testing.assert_allclose(ours, ref_spikes, atol=1e-6)
+    np.testing.assert_allclose(vm, [v for _, v, _ in trace], atol=2e-3)
+    np.testing.assert_allclose(vthc, [th for _, _, th in trace], atol=2e-3)
+
+
+def test_depolarisation_block_prevents_spikes():
+    config = NetworkConfig(dt_ms=0.5)
+    const = _one_cell_constants(config, 0)  # an E cell: Vblock = -25 mV
+    s = C.init_cells(1)
+    big = jnp.array([60.0])                 # AMPA jump of 60 mV -> Vm = -5 mV > Vblock
+    s, spiked = C.cell_step(s, big, big * 0, big * 0, big * 0, const)
+    assert not bool(spiked[0]) and float(C.membrane_potential(s, const)[0]) > -25.0
+    # as AMPA decays (tau 20 ms) Vm falls through (VTH, Vblock] = (-40, -25] and the cell fires there, once
+    zero = jnp.zeros(1)
+    fired = []
+    for k in range(200):
+        s, spiked = C.cell_step(s, zero, zero, zero, zero, const)
+        if bool(spiked[0]):
+            fired.append(float(C.membrane_potential(s, const)[0]) + 1.0)  # + ahpwt: Vm at the crossing
+    assert fired and all(-40.0 < v <= -25.0 + 1e-4 for v in fired[:1])
+
+
+def test_refractory_periods_in_steps():
+    for dt, expected in [(0.1, (50, 25, 25)), (0.5, (10, 5, 5)), (1.0, (5, 3, 3))]:
+        const = C.cell_constants(NetworkConfig(dt_ms=dt))
+        pops = Populations(NetworkConfig(dt_ms=dt))
+        got = tuple(int(const.n_refractory[pops.start[p]]) for p in ("ES", "IS", "ISL"))
+        assert got == expected

@@ -1,0 +1,138 @@
+"""Network structure: populations, ids, groups, fixed in-degree wiring and its per-post layout (spec §2)."""
+import jax
+import numpy as np
+import pytest
+
+from jaxarm.config.validate import ConfigError
+from jaxarm.network import PATHWAYS, NetworkConfig, Populations, WiringLayout, in_degree_table, make_wiring
+from jaxarm.network.wiring import SPIKE_GROUPS
+
+#: In-degrees of the spec §2 table (verified there by dumping the original's built network).
+SPEC_IN_DEGREE = {
+    "P->ES": 22, "ES->ES": 11, "ES->IS": 93, "ES->ISL": 110, "ES->EM": 65, "ES->IM": 11, "ES->IML": 11,
+    "EM->EM": 11, "EM->ES": 2, "EM->IM": 93, "EM->IML": 110,
+    "IS->ES": 22, "IS->IS": 31, "IS->ISL": 17, "ISL->ES": 8, "ISL->IS": 12, "ISL->ISL": 2,
+    "IM->EM": 22, "IM->IM": 31, "IM->IML": 17, "IML->EM": 8, "IML->IM": 12, "IML->IML": 2,
+}
+#: Weights of the spec §2 table: AMPA (E presyn, NMDA = 0.1 x) or GABA (I presyn), mV.
+SPEC_WEIGHT = {
+    "P->ES": 4.0, "ES->ES": 1.98, "ES->IS": 1.15, "ES->ISL": 0.575, "ES->EM": 2.64, "ES->IM": 1.15, "ES->IML": 0.575,
+    "EM->EM": 1.782, "EM->ES": 0.72, "EM->IM": 1.15, "EM->IML": 0.575,
+    "IS->ES": 4.5, "IS->IS": 4.5, "IS->ISL": 4.5, "ISL->ES": 1.245, "ISL->IS": 2.25, "ISL->ISL": 4.5,
+    "IM->EM": 9.0, "IM->IM": 4.5, "IM->IML": 4.5, "IML->EM": 2.49, "IML->IM": 2.25, "IML->IML": 4.5,
+}
+PLASTIC = {"ES->ES", "ES->IS", "ES->ISL", "ES->EM", "EM->EM", "EM->IM", "EM->IML", "EM->ES"}
+
+
+@pytest.fixture(scope="module")
+def wiring():
+    return make_wiring(NetworkConfig(), jax.random.key(398115))
+
+
+def test_population_sizes_and_id_ranges():
+    pops = Populations(NetworkConfig())
+    expected = {"ES": (0, 192), "IS": (192, 236), "ISL": (236, 256), "EM": (256, 448), "IM": (448, 492),
+                "IML": (492, 512), "P": (512, 704)}
+    assert {p: (pops.start[p], pops.stop[p]) for p in expected} == expected
+    assert NetworkConfig().n_cells == 512 and NetworkConfig().n_all == 704
+
+
+def test_muscle_groups_are_id_mod_4_and_interleaved():
+    pops = Populations(NetworkConfig())
+    np.testing.assert_array_equal(pops.em_groups(), np.arange(256, 448) % 4)
+    np.testing.assert_array_equal(pops.p_groups(), np.arange(192) % 4)
+    np.testing.assert_array_equal(pops.p_tuning_index(), np.arange(192) // 4)
+    assert all(np.sum(pops.em_groups() == g) == 48 for g in range(4))
+
+
+def test_in_degrees_weights_and_totals_match_spec_table():
+    assert in_degree_table() == SPEC_IN_DEGREE
+    assert {pw.name: pw.weight for pw in PATHWAYS} == SPEC_WEIGHT
+    assert {pw.name for pw in PATHWAYS if pw.plastic} == PLASTIC
+    layout = WiringLayout(NetworkConfig())
+    assert layout.n_network_syn == 46_440       # spec §2: intra-network synapses
+    assert layout.n_syn == 46_440 + 4_224       # + P -> ES
+    assert layout.n_plastic == sum(NetworkConfig().size(pw.post) * SPEC_IN_DEGREE[pw.name]
+                                   for pw in PATHWAYS if pw.plastic)
+
+
+def test_wiring_is_fixed_in_degree_without_multi_edges_and_with_spec_delays(wiring):
+    layout = WiringLayout(NetworkConfig())
+    pops = layout.pops
+    for pw in PATHWAYS:
+        pre = np.asarray(layout.view(wiring.pre, pw.name))
+        post = np.asarray(layout.view(wiring.post, pw.name))
+        delay = np.asarray(layout.view(wiring.delay_steps, pw.name)) * NetworkConfig().dt_ms
+        n_post, k = pre.shape
+        assert (n_post, k) == (NetworkConfig().size(pw.post), SPEC_IN_DEGREE[pw.name])
+        np.testing.assert_array_equal(post, np.repeat(pops.ids(pw.post)[:, None], k, axis=1))
+        assert pre.min() >= pops.start[pw.pre] and pre.max() < pops.stop[pw.pre]
+        assert all(len(set(row)) == k for row in pre), f"{pw.name}: duplicate presynaptic partner"
+        lo, hi = pw.delay_ms
+        assert delay.min() >= lo - 0.25 and delay.max() <= hi + 0.25  # rounded to dt = 0.5 ms
+        w = np.asarray(layout.view(wiring.weight, pw.name))
+        np.testing.assert_allclose(w, SPEC_WEIGHT[pw.name])
+        nmda = np.asarray(layout.view(wiring.nmda, pw.name))
+        np.testing.assert_allclose(nmda, 0.1 * SPEC_WEIGHT[pw.name] if pw.pre in ("P", "ES", "EM") else 0.0,
+                                   rtol=1e-6)
+    assert int(wiring.out_overflow) == 0
+
+
+def test_self_connections_follow_the_variant(wiring):
+    layout = WiringLayout(NetworkConfig())
+    selfs = sum(int(np.sum(np.asarray(layout.view(wiring.pre, n)) == np.asarray(layout.view(wiring.post, n))))
+                for n in ("ES->ES", "IS->IS", "EM->EM", "IM->IM"))
+    assert selfs > 0   # the original's accidental self-connections (spec §2: 12 + 30 + 7 + 23 there)
+    cfg = NetworkConfig(self_connections="exclude")
+    w = make_wiring(cfg, jax.random.key(398115))
+    lay = WiringLayout(cfg)
+    for pw in PATHWAYS:
+        assert not np.any(np.asarray(lay.view(w.pre, pw.name)) == np.asarray(lay.view(w.post, pw.name)))
+
+
+def test_delivery_tables_list_every_network_synapse_once(wiring):
+    layout = WiringLayout(NetworkConfig())
+    seen = []
+    for cells, tables in zip(layout.group_cells, wiring.groups):
+        out = np.asarray(tables.out_syn)
+        assert np.all(out[-1] == layout.n_syn)          # the "no spike" row is all padding
+        for r, c in enumerate(cells):
+            ids = out[r][out[r] < layout.n_syn]
+            assert np.all(np.asarray(wiring.pre)[ids] == c)
+            seen.append(ids)
+        np.testing.assert_allclose(np.asarray(tables.out_weight), np.asarray(wiring.weight)[out])
+    seen = np.sort(np.concatenate(seen))
+    np.testing.assert_array_equal(seen, np.arange(layout.n_network_syn))
+    assert [g for g in SPIKE_GROUPS] == [("ES",), ("EM",), ("IS", "ISL", "IM", "IML")]
+
+
+def test_plastic_input_tables_list_each_cells_plastic_synapses(wiring):
+    layout = WiringLayout(NetworkConfig())
+    plastic_post = np.asarray(wiring.post)[:layout.n_plastic]
+    for cells, tables in zip(layout.group_cells, wiring.groups):
+        table = np.asarray(tables.in_plastic)
+        pre = np.asarray(tables.in_plastic_pre)
+        for r, c in enumerate(cells[::17]):
+            row = table[r * 17]
+            ids = row[row < layout.n_plastic]
+            np.testing.assert_array_equal(np.sort(ids), np.flatnonzero(plastic_post == c))
+            np.testing.assert_array_equal(pre[r * 17][row < layout.n_plastic], np.asarray(wiring.pre)[ids])
+
+
+def test_wiring_is_deterministic_and_key_dependent():
+    cfg = NetworkConfig()
+    a, b = make_wiring(cfg, jax.random.key(1)), make_wiring(cfg, jax.random.key(1))
+    c = make_wiring(cfg, jax.random.key(2))
+    np.testing.assert_array_equal(a.pre, b.pre)
+    np.testing.assert_array_equal(a.delay_steps, b.delay_steps)
+    assert np.mean(np.asarray(a.pre) != np.asarray(c.pre)) > 0.5
+
+
+@pytest.mark.parametrize("field, value", [
+    ("dt_ms", 0.3), ("dt_ms", 0.0), ("dt_ms", 2.0), ("sizes", (192, 44, 20, 190, 44, 20, 192)),
+    ("self_connections", "none"), ("p_tuning", "wide"), ("spike_capacity", (4, 2)), ("spike_capacity", 8),
+    ("readout_bins", 1), ("interface_ms", 10.5), ("noise_max_rate_hz", -1.0), ("readout_clip", 1),
+])
+def test_config_rejects_bad_values_naming_the_field(field, value):
+    with pytest.raises(ConfigError, match=field):
+        NetworkConfig(**{field: value})
