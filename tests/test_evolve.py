@@ -226,6 +226,25 @@ def test_common_and_independent_seeds():
 
     assert np.all(spread("common") == 0.0)
     assert np.all(spread("independent") > 0.0)
+    s = make_search(noise, SMALL, EvolveConfig(population_size=6, generations=3, chunk_size=3, seed_mode="fixed"))
+    h = s.run_chunk(s.init(KEY)).history
+    assert np.all(np.asarray(h.median) == np.asarray(h.best)) and len(set(np.asarray(h.best).tolist())) == 1
+
+
+def test_reevaluation_ranks_the_top_k_again(tmp_path):
+    """The quadratic's noise is shared by all candidates evaluated with the same key, so re-evaluating the top-k with
+    common fresh seeds ranks them by their noiseless value: the first row is the closest to the optimum."""
+    config = EvolveConfig(population_size=8, generations=6, chunk_size=6, top_k=10)
+    result = run_search(fit.make_quadratic(0.05), SMALL, config, tmp_path, reevaluate_seeds=3, log=lambda _: None)
+    top = json.loads((tmp_path / TOP_K_FILE).read_text())
+    rows = top["top_k"]
+    assert top["reevaluated"] and len(rows) == 10 and [r["rank"] for r in rows] == list(range(1, 11))
+    assert sorted(r["search_rank"] for r in rows) == list(range(1, 11))
+    again = [r["reevaluation"]["fitness"] for r in rows]
+    assert again == sorted(again) and all(len(r["reevaluation"]["fitness_per_seed"]) == 3 for r in rows)
+    distances = [r["metrics"]["distance"] for r in rows]
+    assert distances[0] == min(distances)
+    assert int(result.state.generation) == 6
 
 
 def test_cma_es_finds_the_benchmark_optimum():
@@ -323,11 +342,12 @@ def test_cli_runs_resumes_and_reports_errors(tmp_path, capsys):
             "--chunk", "2", "--seeds-per-candidate", "2", "--search", "learn_rate,v_em_max", "--sigma", "0.4",
             "--top-k", "5", "--strategy-param", "crossover_rate=0.2", "--out", str(tmp_path / "run")]
     assert evolve_main(args + ["--max-chunks", "1"]) == 0
-    assert evolve_main(args) == 0
+    assert evolve_main(args + ["--reevaluate-seeds", "2"]) == 0
     out = capsys.readouterr().out
     assert "resuming from the checkpoint at generation 2" in out and "gen 4/4" in out and "eval/s" in out
+    assert "re-evaluated the top" in out
     top = json.loads((tmp_path / "run" / TOP_K_FILE).read_text())
-    assert 1 <= len(top["top_k"]) <= 5
+    assert 1 <= len(top["top_k"]) <= 5 and top["reevaluated"]
     first = top["top_k"][0]["metaparams"]
     assert set(first) == set(NAMES) and first["epochs"] == ORIGINAL["epochs"]
     saved = json.loads((tmp_path / "run" / HISTORY_FILE).read_text())

@@ -54,8 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0, help="search seed (default 0)")
     ap.add_argument("--sigma", type=float, default=0.2, help="initial search width in unit-cube units (default 0.2)")
     ap.add_argument("--top-k", type=int, default=30, help="best candidates kept and written (default 30)")
-    ap.add_argument("--seed-mode", choices=("common", "independent"), default="common",
-                    help="the same seeds for every candidate of a generation (common) or not")
+    ap.add_argument("--seed-mode", choices=("common", "independent", "fixed"), default="common",
+                    help="common: the same seeds for every candidate of a generation (default); independent: a seed "
+                         "per evaluation; fixed: the same seeds in every generation")
     ap.add_argument("--seed-reduce", choices=("mean", "max"), default="mean", help="combine seeds by mean or max")
     ap.add_argument("--freeze", default="",
                     help="fields held fixed: 'name' (published value) or 'name=value', comma-separated")
@@ -64,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--start", default="", help="start values of searched fields, 'name=value,...'")
     ap.add_argument("--strategy-param", default="",
                     help="evosax params of the strategy, 'name=value,...' (e.g. crossover_rate=0.2 for SimpleGA)")
+    ap.add_argument("--reevaluate-seeds", type=int, default=0,
+                    help="after the search, evaluate the top-k again with this many fresh seeds and rank by it")
+    ap.add_argument("--reevaluate-train-s", type=float, default=None,
+                    help="training length of the re-evaluation, s (default: --train-s)")
     ap.add_argument("--max-chunks", type=int, default=None, help="stop after this many chunks (resume later)")
     ap.add_argument("--list-fitness", action="store_true", help="list registered fitness functions and exit")
     ap.add_argument("--list-strategies", action="store_true", help="list evosax strategies and exit")
@@ -112,9 +117,16 @@ def evolve_main(argv: list[str] | None = None) -> int:
                 "network_seconds_per_eval": fitness.network_seconds_per_eval}
         if args.max_chunks is not None and args.max_chunks < 1:
             raise ConfigError(f"--max-chunks = {args.max_chunks}: must be >= 1")
+        if args.reevaluate_seeds < 0:
+            raise ConfigError(f"--reevaluate-seeds = {args.reevaluate_seeds}: must be >= 0")
+        reevaluate_fitness = None
+        if args.reevaluate_seeds and args.reevaluate_train_s is not None:
+            reevaluate_fitness = fitness_registry.build(args.fitness, fitness_registry.FitnessOptions(
+                arm=options.arm, targets=options.targets, train_s=args.reevaluate_train_s))
         print(f"jaxarm evolve: {args.fitness} on {space.n_dims} metaparameters ({', '.join(space.names)}); "
               f"frozen: {json.dumps(dict(space.frozen))}")
-        result = run_search(fitness, space, config, args.out, fitness_meta=meta, max_chunks=args.max_chunks)
+        result = run_search(fitness, space, config, args.out, fitness_meta=meta, max_chunks=args.max_chunks,
+                            reevaluate_seeds=args.reevaluate_seeds, reevaluate_fitness=reevaluate_fitness)
     except ConfigError as e:
         print(f"jaxarm evolve: {e}", file=sys.stderr)
         return 2

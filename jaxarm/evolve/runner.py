@@ -7,7 +7,9 @@ Files in the output folder:
 * ``history.json``: per generation best / median / best-so-far fitness, failed evaluations and candidates, the
   fitness's metrics, and each generation's best metaparameters; plus the configuration and costs. Written after
   every chunk.
-* ``top_k.json``: the best ``top_k`` candidates of the whole search, best first, as complete metaparameter sets.
+* ``top_k.json``: the best ``top_k`` candidates of the whole search, best first, as complete metaparameter sets;
+  with ``reevaluate_seeds``, each also evaluated again with that many fresh seeds after the search, and the list
+  ranked by that re-evaluation (the search's own ranking favours lucky draws of a noisy fitness).
 * ``convergence.png``: best, median and best-so-far fitness and failures per generation.
 
 Non-finite numbers are written to JSON as ``null``.
@@ -26,7 +28,7 @@ import numpy as np
 from jaxarm.config.validate import ConfigError
 from jaxarm.evolve.checkpoint import SearchCheckpointer
 from jaxarm.evolve.fitness import Fitness
-from jaxarm.evolve.search import EvolveConfig, SearchState, make_search
+from jaxarm.evolve.search import RERANK_STREAM, EvolveConfig, SearchState, make_reevaluate, make_search
 from jaxarm.evolve.space import SearchSpace
 
 HISTORY_FILE = "history.json"
@@ -62,17 +64,31 @@ def describe(space: SearchSpace, config: EvolveConfig, fitness_meta: dict | None
     return _jsonable({"config": config.to_dict(), "space": space.to_dict(), "fitness": fitness_meta or {}})
 
 
-def top_k_table(state: SearchState, space: SearchSpace) -> list[dict]:
-    """The archive as JSON-ready rows, best first (empty slots left out)."""
+def top_k_table(state: SearchState, space: SearchSpace, reevaluation=None) -> list[dict]:
+    """The archive as JSON-ready rows, best first (empty slots left out). With ``reevaluation`` (a
+    :class:`~jaxarm.evolve.search.Reevaluation` of the archive's filled slots, in archive order) each row also holds
+    it, and the rows are ranked by it (failed re-evaluations last); ``search_rank`` keeps the search's order."""
     arc = jax.device_get(state.archive)
     rows = []
     for i in range(arc.fitness.shape[0]):
         if not np.isfinite(arc.fitness[i]):
             continue
         mp = space.to_metaparams(arc.unit[i]).to_dict()
-        rows.append({"rank": len(rows) + 1, "fitness": _num(arc.fitness[i]), "generation": int(arc.generation[i]),
-                     "metaparams": mp, "unit": {n: _num(v) for n, v in zip(space.names, arc.unit[i])},
+        rows.append({"rank": len(rows) + 1, "search_rank": len(rows) + 1, "fitness": _num(arc.fitness[i]),
+                     "generation": int(arc.generation[i]), "metaparams": mp,
+                     "unit": {n: _num(v) for n, v in zip(space.names, arc.unit[i])},
                      "metrics": {m: _num(v[i]) for m, v in arc.metrics.items()}})
+    if reevaluation is not None:
+        ev = jax.device_get(reevaluation)
+        for j, row in enumerate(rows):
+            row["reevaluation"] = {"fitness": _num(ev.fitness[j]),
+                                   "fitness_per_seed": [_num(x) for x in ev.fitness_per_seed[j]],
+                                   "metrics": {m: _num(v[j]) for m, v in ev.metrics.items()}}
+        order = sorted(range(len(rows)), key=lambda j: (not np.isfinite(ev.fitness[j]),
+                                                         float(ev.fitness[j]) if np.isfinite(ev.fitness[j]) else 0.0))
+        rows = [rows[j] for j in order]
+        for r, row in enumerate(rows):
+            row["rank"] = r + 1
     return rows
 
 
@@ -119,13 +135,17 @@ def plot_convergence(history: dict, path: Path, title: str = "") -> None:
 
 def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveConfig, out_dir: str | Path, *,
                fitness_meta: dict | None = None, max_chunks: int | None = None,
+               reevaluate_seeds: int = 0, reevaluate_fitness: Fitness | Callable | None = None,
                log: Callable[[str], None] = print) -> SearchResult:
     """Run (or resume) a search, checkpointing and reporting after every chunk; write the result files.
 
     ``fitness``: a :class:`Fitness` or a bare pure function (see :mod:`jaxarm.evolve.fitness`). ``fitness_meta``: a
     JSON description of the fitness (name and options), stored with the checkpoints; resuming with a different one,
     or a different space or configuration, raises :class:`ConfigError`. ``max_chunks``: stop after that many chunks
-    in this call (the search can be resumed later).
+    in this call (the search can be resumed later). ``reevaluate_seeds``: when the search is done, evaluate its
+    top-k again with that many fresh seeds (the same for every candidate, from a key stream the search never uses)
+    with ``reevaluate_fitness`` (default: ``fitness``; e.g. the same task with the full training length) and rank
+    ``top_k.json`` by it. It is not part of the checkpointed search, so a finished search can be re-evaluated later.
     """
     fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
     out = Path(out_dir)
@@ -181,18 +201,40 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
             _write_outputs(state, space, config, description, costs, fitness, out, plot=False)
 
         finished = int(state.generation) >= G
-        _write_outputs(state, space, config, description, costs, fitness, out, plot=True)
+        reevaluation = None
+        if finished and reevaluate_seeds > 0:
+            reevaluation = _reevaluate(state, space, config, reevaluate_fitness or fitness, reevaluate_seeds, log)
+        _write_outputs(state, space, config, description, costs, fitness, out, plot=True, reevaluation=reevaluation)
         if finished:
-            best = top_k_table(state, space)
+            best = top_k_table(state, space, reevaluation)
             if best:
-                log(f"done: best fitness {best[0]['fitness']:.5g} (generation {best[0]['generation']}); "
+                again = (f", re-evaluated {best[0]['reevaluation']['fitness']}" if reevaluation is not None else "")
+                log(f"done: best fitness {best[0]['fitness']:.5g} (generation {best[0]['generation']}{again}); "
                     f"results in {out}")
         else:
             log(f"stopped at generation {int(state.generation)}/{G}; run again with the same options to resume")
     return SearchResult(state, finished, out)
 
 
-def _write_outputs(state, space, config, description, costs, fitness, out: Path, plot: bool) -> None:
+def _reevaluate(state, space, config, fitness, seeds, log):
+    fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
+    filled = np.isfinite(np.asarray(state.archive.fitness))
+    units = np.asarray(state.archive.unit)[filled]
+    if units.shape[0] == 0:
+        return None
+    reevaluate = make_reevaluate(fitness.fn, space, seeds, config.seed_reduce)
+    key = jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM)
+    t0 = time.perf_counter()
+    result = jax.block_until_ready(reevaluate(key, units))
+    dt = time.perf_counter() - t0
+    failed = int(np.sum(~np.isfinite(np.asarray(result.fitness_per_seed))))
+    log(f"re-evaluated the top {units.shape[0]} with {seeds} fresh seeds each in {dt:.1f} s (compile included); "
+        f"failed evaluations: {failed}")
+    return result
+
+
+def _write_outputs(state, space, config, description, costs, fitness, out: Path, plot: bool,
+                   reevaluation=None) -> None:
     history = history_table(state, space)
     evals = costs["evaluations"]
     summary = {
@@ -206,7 +248,8 @@ def _write_outputs(state, space, config, description, costs, fitness, out: Path,
     }
     _write_json(out / HISTORY_FILE, summary)
     _write_json(out / TOP_K_FILE, {"fitness": description["fitness"], "lower_is_better": True,
-                                   "top_k": top_k_table(state, space)})
+                                   "reevaluated": reevaluation is not None,
+                                   "top_k": top_k_table(state, space, reevaluation)})
     if plot and history["generation"]:
         plot_convergence(history, out / PLOT_FILE,
                          title=f"{config.strategy}, population {config.population_size}, "

@@ -58,8 +58,11 @@ def _strategies() -> dict:
 #: evosax 0.3.2 strategy names (``evosax.algorithms.algorithms`` but :data:`EXCLUDED_STRATEGIES`), e.g. "CMA_ES",
 #: "Sep_CMA_ES", "SimpleGA", "DifferentialEvolution", "PSO", "RandomSearch" (uniform in the unit cube).
 STRATEGIES: tuple[str, ...] = tuple(sorted(_strategies()))
-SEED_MODES = ("common", "independent")
+SEED_MODES = ("common", "independent", "fixed")
 SEED_REDUCES = ("mean", "max")
+#: ``fold_in`` constants that separate the key streams of "fixed" seeds and of re-evaluation from the search's.
+FIXED_SEEDS_STREAM = 0x5EED
+RERANK_STREAM = 0x2E2A
 
 
 @dataclass(frozen=True)
@@ -77,7 +80,9 @@ class EvolveConfig:
         sigma_init: initial search width in unit-cube coordinates (CMA-ES std; the mutation std of strategies that
             take a std schedule; the std of the others that have ``std_init``).
         top_k: best candidates kept (the paper reported its top 30).
-        seed_mode: "common" (the same seeds for every candidate of a generation) or "independent".
+        seed_mode: "common": the same seeds for every candidate of a generation, new ones each generation (a
+            fairer comparison within a generation); "independent": a seed per evaluation; "fixed": the same seeds
+            for every candidate of every generation (a deterministic fitness; may overfit those seeds).
         seed_reduce: how a candidate's seeds combine: "mean" or "max" (worst case).
         strategy_params: ``((name, value), ...)`` overrides of the strategy's evosax params, e.g.
             ``(("crossover_rate", 0.2),)`` for SimpleGA (the authors' later GA used uniform crossover at 0.2).
@@ -224,6 +229,15 @@ def rank_failures_last(fitness):
     return jnp.where(failed, penalty, fitness)
 
 
+def _combine_seeds(f, reduce: str):
+    """Per-seed fitness (..., S) -> (fitness (...), non-finite mask (..., S)); a candidate with any non-finite
+    evaluation gets NaN."""
+    bad = ~jnp.isfinite(f)
+    f_ok = jnp.where(bad, 0.0, f)
+    combined = jnp.mean(f_ok, axis=-1) if reduce == "mean" else jnp.max(f_ok, axis=-1)
+    return jnp.where(jnp.any(bad, axis=-1), jnp.nan, combined), bad
+
+
 def _like(tree, reference):
     """``tree`` with the dtypes (and strong types) of ``reference``."""
     return jax.tree.map(lambda a, b: lax.convert_element_type(a, b.dtype), tree, reference)
@@ -290,21 +304,21 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
                                    history=history, archive=archive))
 
 
+    fixed_keys = jax.random.split(jax.random.fold_in(jax.random.PRNGKey(config.seed), FIXED_SEEDS_STREAM), S)
+
     def evaluate(k_eval, population):
         """Fitness (P,) (NaN = failed), failed-evaluation count (P,), metrics {name: (P,)}."""
         if config.seed_mode == "common":
             keys = jnp.broadcast_to(jax.random.split(k_eval, S)[None], (P, S, 2))
+        elif config.seed_mode == "fixed":
+            keys = jnp.broadcast_to(fixed_keys[None], (P, S, 2))
         else:
             keys = jax.random.split(k_eval, P * S).reshape(P, S, 2)
         mps = space.to_metaparams(population)
         per_seed = jax.vmap(jax.vmap(evaluate_one, in_axes=(0, None)), in_axes=(0, 0))
         f, metrics = per_seed(keys, mps)                       # (P, S), {name: (P, S)}
-        bad = ~jnp.isfinite(f)
-        f_ok = jnp.where(bad, 0.0, f)
-        combined = jnp.mean(f_ok, axis=1) if config.seed_reduce == "mean" else jnp.max(f_ok, axis=1)
-        failed = jnp.any(bad, axis=1)
-        return (jnp.where(failed, jnp.nan, combined), jnp.sum(bad, axis=1),
-                {m: jnp.mean(v, axis=1) for m, v in metrics.items()})
+        fitness, bad = _combine_seeds(f, config.seed_reduce)
+        return fitness, jnp.sum(bad, axis=1), {m: jnp.mean(v, axis=1) for m, v in metrics.items()}
 
     def generation_step(state: SearchState) -> SearchState:
         key, k_ask, k_eval, k_tell = jax.random.split(state.key, 4)
@@ -366,3 +380,36 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
 
     return Search(init=jax.jit(init), run_chunk=run_chunk, config=config, space=space,
                   metric_names=metric_names)
+
+
+class Reevaluation(NamedTuple):
+    """Candidates evaluated again with fresh seeds (see :func:`make_reevaluate`)."""
+
+    fitness: jnp.ndarray           # (K,) seeds combined by ``seed_reduce``; NaN if any evaluation failed
+    fitness_per_seed: jnp.ndarray  # (K, seeds)
+    metrics: dict                  # name -> (K,), mean over seeds
+
+
+def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_reduce: str = "mean") -> Callable:
+    """``reevaluate(key, units (K, n_dims)) -> Reevaluation``: each candidate with the same ``seeds`` fresh keys
+    (split from ``key``), one candidate at a time (``lax.map``) with its seeds in one ``vmap``.
+
+    The search ranks candidates by noisy fitness, so its best are partly its luckiest; evaluating the top-k again
+    with new seeds (and, for the reaching task, the full training length) gives the final ranking.
+    """
+    if seeds < 1:
+        raise ConfigError(f"seeds = {seeds!r} is out of range; allowed >= 1")
+    evaluate_one = _normalise(fitness_fn)
+
+    @jax.jit
+    def reevaluate(key, units) -> Reevaluation:
+        keys = jax.random.split(raw_key(key), seeds)
+
+        def one(u):
+            return jax.vmap(evaluate_one, in_axes=(0, None))(keys, space.to_metaparams(u))
+
+        f, metrics = lax.map(one, jnp.asarray(units, jnp.float32))   # (K, S), {name: (K, S)}
+        fitness, _ = _combine_seeds(f, seed_reduce)
+        return Reevaluation(fitness, f, {m: jnp.mean(v, axis=1) for m, v in metrics.items()})
+
+    return reevaluate
