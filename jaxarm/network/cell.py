@@ -139,9 +139,10 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
     excess = s.vthc_excess * rr
 
     v = jnp.clip(ampa + nmda + gaba_prox + gaba_dist + ahp, c.rmp, -c.rmp)
-    ampa = jnp.maximum(ampa + ampa_in * (1.0 - v / E_AMPA), 0.0)
-    nmda = jnp.where(nmda < E_NMDA, nmda + nmda_in * mg_block(c.rmp + v) * (1.0 - v / E_NMDA), nmda)
-    gaba_factor = 1.0 - v / E_GABA
+    # driving-force factors 1 - V/E, written with reciprocals (a float division costs several multiplications)
+    ampa = jnp.maximum(ampa + ampa_in * (1.0 - v * (1.0 / E_AMPA)), 0.0)
+    nmda = jnp.where(nmda < E_NMDA, nmda + nmda_in * mg_block(c.rmp + v) * (1.0 - v * (1.0 / E_NMDA)), nmda)
+    gaba_factor = 1.0 - v * (1.0 / E_GABA)
     gaba_prox = jnp.where(gaba_prox > E_GABA, jnp.minimum(gaba_prox - gaba_prox_in * gaba_factor, 0.0), gaba_prox)
     gaba_dist = jnp.where(gaba_dist > E_GABA, jnp.minimum(gaba_dist - gaba_dist_in * gaba_factor, 0.0), gaba_dist)
 
