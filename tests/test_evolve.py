@@ -20,6 +20,8 @@ from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL
 
 KEY = jax.random.PRNGKey(0)
 SMALL = SearchSpace.make(search=["learn_rate", "v_em_max", "rl_dt_ms", "epochs"])
+#: A strategy that compiles fast (CMA-ES's own update takes most of its compile time), for tests of the loop itself.
+CHEAP = "HillClimbing"
 
 
 def leaves_equal(a, b) -> bool:
@@ -115,7 +117,8 @@ def test_loop_compiles_once_and_counts_traces():
         traces.append(1)   # runs at trace time only
         return fit.make_quadratic(0.01)(key, mp)
 
-    search = make_search(counting, SMALL, EvolveConfig(population_size=6, generations=7, chunk_size=3))
+    search = make_search(counting, SMALL, EvolveConfig(strategy=CHEAP, population_size=6, generations=7,
+                                                       chunk_size=3))
     state = search.init(KEY)
     state = search.run_chunk(state)
     after_first = len(traces)
@@ -157,8 +160,8 @@ def test_frozen_fields_stay_at_their_values():
         return fit.make_quadratic(0.01)(key, mp)[0], {"learn_rate": mp.learn_rate, "epochs": mp.epochs,
                                                        "v_em_max": mp.v_em_max}
 
-    search = make_search(report, space, EvolveConfig(population_size=6, generations=3, chunk_size=3,
-                                                     sigma_init=2.0))
+    search = make_search(report, space, EvolveConfig(strategy=CHEAP, population_size=6, generations=3,
+                                                     chunk_size=3, sigma_init=2.0))
     state = search.run_chunk(search.init(KEY))
     for name, value in (("learn_rate", 0.05), ("epochs", 3.0), ("v_em_max", 117.92)):
         for table in (state.history.metrics_best, state.archive.metrics):   # per candidate: exact
@@ -205,7 +208,8 @@ def test_nan_fitness_is_ranked_worst_counted_and_reported(strategy, tmp_path):
 
 def test_all_failed_generation_does_not_crash():
     search = make_search(lambda key, mp: jnp.float32(jnp.nan), SMALL,
-                         EvolveConfig(population_size=4, generations=2, chunk_size=2, seeds_per_candidate=3))
+                         EvolveConfig(strategy=CHEAP, population_size=4, generations=2, chunk_size=2,
+                                      seeds_per_candidate=3))
     state = search.run_chunk(search.init(KEY))
     assert np.all(np.asarray(state.history.nonfinite_candidates) == 4)
     assert np.all(np.asarray(state.history.nonfinite_evals) == 12)
@@ -220,13 +224,15 @@ def test_common_and_independent_seeds():
         return jax.random.normal(key, ())
 
     def spread(mode):
-        s = make_search(noise, SMALL, EvolveConfig(population_size=6, generations=2, chunk_size=2, seed_mode=mode))
+        s = make_search(noise, SMALL, EvolveConfig(strategy=CHEAP, population_size=6, generations=2, chunk_size=2,
+                                                   seed_mode=mode))
         h = s.run_chunk(s.init(KEY)).history
         return np.asarray(h.median) - np.asarray(h.best)
 
     assert np.all(spread("common") == 0.0)
     assert np.all(spread("independent") > 0.0)
-    s = make_search(noise, SMALL, EvolveConfig(population_size=6, generations=3, chunk_size=3, seed_mode="fixed"))
+    s = make_search(noise, SMALL, EvolveConfig(strategy=CHEAP, population_size=6, generations=3, chunk_size=3,
+                                               seed_mode="fixed"))
     h = s.run_chunk(s.init(KEY)).history
     assert np.all(np.asarray(h.median) == np.asarray(h.best)) and len(set(np.asarray(h.best).tolist())) == 1
 
@@ -234,7 +240,7 @@ def test_common_and_independent_seeds():
 def test_reevaluation_ranks_the_top_k_again(tmp_path):
     """The quadratic's noise is shared by all candidates evaluated with the same key, so re-evaluating the top-k with
     common fresh seeds ranks them by their noiseless value: the first row is the closest to the optimum."""
-    config = EvolveConfig(population_size=8, generations=6, chunk_size=6, top_k=10)
+    config = EvolveConfig(strategy=CHEAP, population_size=8, generations=6, chunk_size=6, top_k=10)
     result = run_search(fit.make_quadratic(0.05), SMALL, config, tmp_path, reevaluate_seeds=3, log=lambda _: None)
     top = json.loads((tmp_path / TOP_K_FILE).read_text())
     rows = top["top_k"]
@@ -308,8 +314,8 @@ def test_resumed_search_equals_uninterrupted_bit_for_bit(strategy, tmp_path):
 
 
 def test_checkpoint_restores_exact_state(tmp_path):
-    search = make_search(fit.make_quadratic(0.01), SMALL, EvolveConfig(population_size=4, generations=4,
-                                                                      chunk_size=2))
+    search = make_search(fit.make_quadratic(0.01), SMALL, EvolveConfig(strategy=CHEAP, population_size=4,
+                                                                      generations=4, chunk_size=2))
     state = search.run_chunk(search.init(KEY))
     with SearchCheckpointer(tmp_path) as ckpt:
         ckpt.save(state, {"note": "x"})

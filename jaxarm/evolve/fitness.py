@@ -87,6 +87,9 @@ class _Entry(NamedTuple):
 
 
 _REGISTRY: dict[str, _Entry] = {}
+#: Built fitness functions by (name, options): building the same one twice returns the same function object, so
+#: that :func:`jaxarm.evolve.search.make_search` finds its compiled search again.
+_BUILT: dict[tuple, Fitness] = {}
 
 
 def register(name: str, make_fn: Callable[[FitnessOptions], Fitness | Callable], help: str = "") -> None:
@@ -95,6 +98,8 @@ def register(name: str, make_fn: Callable[[FitnessOptions], Fitness | Callable],
     if not name or not isinstance(name, str):
         raise ValueError(f"fitness name must be a non-empty string, got {name!r}")
     _REGISTRY[name] = _Entry(make_fn, help)
+    for key in [k for k in _BUILT if k[0] == name]:
+        del _BUILT[key]
 
 
 def available() -> dict[str, str]:
@@ -108,8 +113,10 @@ def build(name: str, options: FitnessOptions) -> Fitness:
     _load_plugins()
     if name not in _REGISTRY:
         raise ConfigError(f"fitness = {name!r} is not registered; available: {', '.join(sorted(_REGISTRY))}")
-    built = _REGISTRY[name].make_fn(options)
-    return built if isinstance(built, Fitness) else Fitness(built)
+    if (name, options) not in _BUILT:
+        built = _REGISTRY[name].make_fn(options)
+        _BUILT[(name, options)] = built if isinstance(built, Fitness) else Fitness(built)
+    return _BUILT[(name, options)]
 
 
 #: Modules imported before the registry is read, so that their ``register`` calls run (the training code's module

@@ -32,6 +32,7 @@ evosax minimises; so does this search (lower fitness is better).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import inspect
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
@@ -265,9 +266,21 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
     """Build the pure ``init`` and ``run_chunk`` of a search of ``fitness_fn`` over ``space``.
 
     ``fitness_fn(key, metaparams) -> fitness | (fitness, metrics)``, lower is better (see :mod:`jaxarm.evolve.fitness`).
+    The same (fitness function object, space, config) returns the same :class:`Search`, so a search run again in
+    the same process (resumed, or re-run in a notebook) reuses its compiled chunk.
     """
     if not isinstance(space, SearchSpace):
         raise TypeError(f"space must be a SearchSpace, got {type(space).__name__}")
+    if not isinstance(config, EvolveConfig):
+        raise TypeError(f"config must be an EvolveConfig, got {type(config).__name__}")
+    try:
+        hash(fitness_fn)
+    except TypeError:
+        return _make_search(fitness_fn, space, config)
+    return _make_search_cached(fitness_fn, space, config)
+
+
+def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) -> Search:
     from evosax.algorithms.population_based.base import PopulationBasedAlgorithm
 
     n, P, S, K, G = space.n_dims, config.population_size, config.seeds_per_candidate, config.top_k, config.generations
@@ -380,6 +393,9 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
 
     return Search(init=jax.jit(init), run_chunk=run_chunk, config=config, space=space,
                   metric_names=metric_names)
+
+
+_make_search_cached = functools.lru_cache(maxsize=16)(_make_search)
 
 
 class Reevaluation(NamedTuple):
