@@ -93,6 +93,7 @@ def test_space_errors_name_the_field(kwargs, names):
     (dict(seeds_per_candidate=0), "EvolveConfig.seeds_per_candidate"),
     (dict(sigma_init=-0.1), "EvolveConfig.sigma_init"),
     (dict(seed_mode="shared"), "EvolveConfig.seed_mode"),
+    (dict(population_size=8, eval_batch_size=9), "EvolveConfig.eval_batch_size"),
     (dict(strategy="SimpleGA", strategy_params={"mutation_rate": 0.1}), "mutation_rate"),
     (dict(strategy="Open_ES", population_size=7), "EvolveConfig.population_size"),   # evosax needs an even one
 ])
@@ -235,6 +236,20 @@ def test_common_and_independent_seeds():
                                                seed_mode="fixed"))
     h = s.run_chunk(s.init(KEY)).history
     assert np.all(np.asarray(h.median) == np.asarray(h.best)) and len(set(np.asarray(h.best).tolist())) == 1
+
+
+def test_batched_evaluation_equals_one_vmap():
+    """eval_batch_size runs the population in sequential batches (less memory) with the same result."""
+    fitness = fit.make_quadratic(0.01)
+    states = []
+    for batch in (0, 3):   # 3 does not divide the population of 8: a remainder batch
+        s = make_search(fitness, SMALL, EvolveConfig(strategy=CHEAP, population_size=8, generations=2, chunk_size=2,
+                                                     seeds_per_candidate=2, seed_mode="independent",
+                                                     eval_batch_size=batch))
+        states.append(s.run_chunk(s.init(KEY)))
+    a, b = states
+    np.testing.assert_allclose(a.archive.fitness, b.archive.fitness, rtol=1e-6)
+    np.testing.assert_array_equal(a.archive.unit, b.archive.unit)
 
 
 def test_reevaluation_ranks_the_top_k_again(tmp_path):

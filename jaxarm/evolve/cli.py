@@ -65,6 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--start", default="", help="start values of searched fields, 'name=value,...'")
     ap.add_argument("--strategy-param", default="",
                     help="evosax params of the strategy, 'name=value,...' (e.g. crossover_rate=0.2 for SimpleGA)")
+    ap.add_argument("--eval-batch", type=int, default=0,
+                    help="candidates evaluated at once (0 = the whole population; smaller uses less memory)")
     ap.add_argument("--reevaluate-seeds", type=int, default=0,
                     help="after the search, evaluate the top-k again with this many fresh seeds and rank by it")
     ap.add_argument("--reevaluate-train-s", type=float, default=None,
@@ -108,7 +110,8 @@ def evolve_main(argv: list[str] | None = None) -> int:
         config = EvolveConfig(strategy=args.strategy, population_size=args.population, generations=args.generations,
                               chunk_size=args.chunk, seeds_per_candidate=args.seeds_per_candidate, seed=args.seed,
                               sigma_init=args.sigma, top_k=args.top_k, seed_mode=args.seed_mode,
-                              seed_reduce=args.seed_reduce, strategy_params=strategy_params)
+                              seed_reduce=args.seed_reduce, strategy_params=strategy_params,
+                              eval_batch_size=args.eval_batch)
         options = fitness_registry.FitnessOptions(
             arm=args.arm, targets=tuple(t.strip() for t in args.targets.split(",") if t.strip()),
             train_s=args.train_s)

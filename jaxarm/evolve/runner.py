@@ -208,9 +208,10 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
         if finished:
             best = top_k_table(state, space, reevaluation)
             if best:
-                again = (f", re-evaluated {best[0]['reevaluation']['fitness']}" if reevaluation is not None else "")
-                log(f"done: best fitness {best[0]['fitness']:.5g} (generation {best[0]['generation']}{again}); "
-                    f"results in {out}")
+                again = best[0].get("reevaluation", {}).get("fitness")
+                again = f"re-evaluated {again:.5g}, " if again is not None else ""
+                log(f"done: best candidate: {again}search fitness {best[0]['fitness']:.5g} "
+                    f"(generation {best[0]['generation']}); results in {out}")
         else:
             log(f"stopped at generation {int(state.generation)}/{G}; run again with the same options to resume")
     return SearchResult(state, finished, out)

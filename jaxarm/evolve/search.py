@@ -15,8 +15,10 @@ One generation:
    *repaired* candidates are what is evaluated, told, and archived, so a population-based strategy never leaves
    the bounds).
 2. Each candidate is evaluated with ``seeds_per_candidate`` keys ("common": the same keys for every candidate of the
-   generation, which makes their comparison less noisy; "independent": a key per evaluation) and the seeds combine
-   by their mean (or their maximum, the worst case). A candidate with any non-finite evaluation fails.
+   generation, which makes their comparison less noisy; "independent": a key per evaluation; "fixed": the same
+   keys in every generation) and the seeds combine by their mean (or their maximum, the worst case). A candidate
+   with any non-finite evaluation fails. All candidates x seeds run in one ``vmap``, or ``eval_batch_size``
+   candidates at a time (``lax.map``) when memory is short.
 3. ``tell``: failed candidates are told a fitness strictly worse than the generation's worst finite one (the
    generation's worst plus its spread, :func:`rank_failures_last`), so they rank last, whatever the strategy does
    with NaN. Their count is recorded in the history.
@@ -87,6 +89,8 @@ class EvolveConfig:
         seed_reduce: how a candidate's seeds combine: "mean" or "max" (worst case).
         strategy_params: ``((name, value), ...)`` overrides of the strategy's evosax params, e.g.
             ``(("crossover_rate", 0.2),)`` for SimpleGA (the authors' later GA used uniform crossover at 0.2).
+        eval_batch_size: candidates evaluated at once (each with all its seeds in one ``vmap``); the population
+            is run in batches of this size one after the other (``lax.map``). 0 = the whole population at once.
     """
 
     strategy: str = "CMA_ES"
@@ -100,6 +104,7 @@ class EvolveConfig:
     seed_mode: str = "common"
     seed_reduce: str = "mean"
     strategy_params: tuple = ()
+    eval_batch_size: int = 0
 
     def __post_init__(self):
         check_choice(self, "strategy", STRATEGIES)
@@ -112,6 +117,7 @@ class EvolveConfig:
         check_range(self, "top_k", 1, None, integer=True)
         check_choice(self, "seed_mode", SEED_MODES)
         check_choice(self, "seed_reduce", SEED_REDUCES)
+        check_range(self, "eval_batch_size", 0, self.population_size, integer=True)
         pairs = dict(self.strategy_params.items() if isinstance(self.strategy_params, dict) else self.strategy_params)
         object.__setattr__(self, "strategy_params", tuple(sorted((str(k), float(v)) for k, v in pairs.items())))
         make_strategy(self, n_dims=2)   # the strategy's own constraints (e.g. an even population) and param names
@@ -328,8 +334,11 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig)
         else:
             keys = jax.random.split(k_eval, P * S).reshape(P, S, 2)
         mps = space.to_metaparams(population)
-        per_seed = jax.vmap(jax.vmap(evaluate_one, in_axes=(0, None)), in_axes=(0, 0))
-        f, metrics = per_seed(keys, mps)                       # (P, S), {name: (P, S)}
+        per_candidate = jax.vmap(evaluate_one, in_axes=(0, None))   # one candidate, its S seeds
+        if config.eval_batch_size in (0, P):
+            f, metrics = jax.vmap(per_candidate)(keys, mps)      # (P, S), {name: (P, S)}
+        else:
+            f, metrics = lax.map(lambda a: per_candidate(*a), (keys, mps), batch_size=config.eval_batch_size)
         fitness, bad = _combine_seeds(f, config.seed_reduce)
         return fitness, jnp.sum(bad, axis=1), {m: jnp.mean(v, axis=1) for m, v in metrics.items()}
 
