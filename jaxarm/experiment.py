@@ -1,0 +1,299 @@
+"""``jaxarm train`` and ``jaxarm test``: train many networks on a reaching target, test them, write the results.
+
+    jaxarm train --arm simple --target left --networks 30 --seed 0 --out runs/simple_left
+    jaxarm test  --from runs/simple_left                   # re-test the trained networks (e.g. another duration)
+
+Network i of a run uses the key ``PRNGKey(seed + i)`` (its wiring, noise and babbling), so any network can be
+reproduced alone. All networks train together under one ``vmap``; epochs run one compiled call each, with an orbax
+checkpoint after every epoch: a killed run started again with the same command resumes from its last completed
+epoch and ends with the same results as an uninterrupted run.
+
+Outputs in ``--out`` (one subfolder per target when several are given):
+``results.json`` (success_count, per-network seed/success/distances/reach metrics, the naive networks' results,
+per-epoch rates and weights, the full configuration), ``trajectories.npz`` (t, q, hand, u, distance for the trained
+and naive networks), ``checkpoints/`` (orbax: wiring, learned gains, babbling state) and ``reach.png`` (hand paths
+and velocity profiles, trained vs naive, in the style of the paper's Fig. 6).
+"""
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxarm.analysis.reach import reach_metrics
+from jaxarm.learning.metaparams import MetaParams
+from jaxarm.loop import POP_NAMES, LoopConfig
+from jaxarm.network.wiring import PATHWAYS
+from jaxarm.task.config import TARGET_ANGLES_RAD, TaskConfig
+from jaxarm.train import EpochSummary, Trained, make_train
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled(config: LoopConfig):
+    """make_train and the jitted, network-vmapped init/epoch/test of one configuration (shared by every Run)."""
+    fns = make_train(config)
+    return (fns, jax.jit(jax.vmap(fns.init)), jax.jit(jax.vmap(fns.epoch, in_axes=(0, None))),
+            jax.jit(jax.vmap(fns.test, in_axes=(0, 0, None))))
+
+
+def network_keys(seed: int, n: int):
+    return jnp.stack([jax.random.PRNGKey(seed + i) for i in range(n)])
+
+
+class Run:
+    """One target: N networks trained together, checkpointed per epoch."""
+
+    def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams):
+        self.config, self.n, self.seed, self.out, self.mp = config, n_networks, seed, out, mp
+        self.fns, self.init_fn, self.epoch_fn, self.test_fn = _compiled(config)
+
+    def meta(self) -> dict:
+        return {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
+                "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
+                "epoch_s": self.config.task.epoch_duration_s, "metaparams": self.mp.to_dict()}
+
+    def empty_history(self, carry) -> EpochSummary:
+        one = jax.eval_shape(lambda c: self.epoch_fn(c, self.mp)[1], carry)
+        return jax.tree.map(lambda s: jnp.zeros((self.config.task.epochs,) + s.shape, s.dtype), one)
+
+    def train(self, progress: bool = True, stop_after: int | None = None):
+        """Train all networks (resuming from ``out/checkpoints``). ``stop_after``: return after that many epochs of
+        this invocation, as a kill would (tests use it). Returns (carry, history, wall_s, epochs_run, compile_s)."""
+        from jaxarm.checkpoint import Checkpointer
+
+        epochs = self.config.task.epochs
+        carry = self.init_fn(network_keys(self.seed, self.n))
+        history = self.empty_history(carry)
+        done = 0
+        with Checkpointer(self.out / "checkpoints") as ckpt:
+            if ckpt.latest_step() is not None:
+                meta = ckpt.read_meta()
+                if meta != self.meta():
+                    raise SystemExit(f"{self.out / 'checkpoints'} holds a different run ({meta}); "
+                                     "use another --out or delete it")
+                (carry, history), _ = ckpt.restore((carry, history))
+                done = int(ckpt.latest_step())
+            t0 = time.perf_counter()
+            epoch_fn = self.epoch_fn.lower(carry, self.mp).compile()
+            compile_s = time.perf_counter() - t0
+            bar = _progress(epochs, done, progress, f"{self.config.arm}/{self.config.task.target}")
+            wall = 0.0
+            last = epochs if stop_after is None else min(epochs, done + stop_after)
+            for e in range(done, last):
+                t0 = time.perf_counter()
+                carry, summary = epoch_fn(carry, self.mp)
+                jax.block_until_ready(summary)
+                wall += time.perf_counter() - t0
+                history = jax.tree.map(lambda h, s: h.at[e].set(s), history, summary)
+                ckpt.save(e + 1, (carry, history), self.meta())
+                if bar is not None:
+                    sim_s = (e + 1 - done) * self.config.task.epoch_duration_s
+                    bar.set_postfix(sim_s=f"{(e + 1) * self.config.task.epoch_duration_s:.0f}",
+                                    net_s_per_s=f"{sim_s * self.n / wall:.1f}")
+                    bar.update(1)
+            if bar is not None:
+                bar.close()
+        return carry, history, wall, last - done, compile_s
+
+    def test(self, trained: Trained):
+        keys = jax.vmap(lambda k: jax.random.fold_in(k, 7))(network_keys(self.seed, self.n))
+        return self.test_fn(keys, trained, self.mp)
+
+    def naive(self) -> Trained:
+        return self.init_fn(network_keys(self.seed, self.n)).trained
+
+
+def _progress(total, initial, enabled, desc):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, desc=desc, unit="epoch")
+
+
+def _metrics(result, target_xy, dt):
+    m = jax.vmap(lambda xy: reach_metrics(xy, target_xy, dt))(result.hand_m)
+    return {k: np.asarray(v) for k, v in m._asdict().items()}
+
+
+def _network_rows(seeds, metrics) -> list[dict]:
+    rows = []
+    for i, seed in enumerate(seeds):
+        row = {"seed": int(seed)}
+        for k, v in metrics.items():
+            x = v[i].item()
+            row[k] = bool(x) if k == "success" else (None if np.isnan(x) else round(float(x), 5))
+        rows.append(row)
+    return rows
+
+
+def write_outputs(run: Run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
+    task = run.config.task
+    dt = task.update_interval_s
+    target = np.asarray(task.target_xy_m, np.float32)
+    seeds = [run.seed + i for i in range(run.n)]
+    m_tr, m_nv = _metrics(trained_res, target, dt), _metrics(naive_res, target, dt)
+    hist = {k: np.asarray(v) for k, v in history._asdict().items()}
+    results = {
+        "success_count": int(m_tr["success"].sum()),
+        "n_networks": run.n,
+        "target": task.target,
+        "target_xy_m": target.round(5).tolist(),
+        "networks": _network_rows(seeds, m_tr),
+        "naive": {"success_count": int(m_nv["success"].sum()), "networks": _network_rows(seeds, m_nv)},
+        "history": {
+            "rates_last10s_hz": {p: hist["rates_last10s_hz"][:, :, j].mean(axis=1).round(3).tolist()
+                                 for j, p in enumerate(POP_NAMES)},
+            "mean_wgain": {pw.name: hist["mean_wgain"][:, :, j].mean(axis=1).round(4).tolist()
+                           for j, pw in enumerate(PATHWAYS)},
+            "final_distance_m": hist["final_distance_m"].mean(axis=1).round(4).tolist(),
+            "rewards": hist["rewards"].sum(axis=1).tolist(),
+            "punishments": hist["punishments"].sum(axis=1).tolist(),
+            "lost_spikes": int(hist["lost_spikes"].sum()),
+        },
+        "test_rates_hz": {p: float(np.asarray(trained_res.rates_hz)[:, j].mean().round(3))
+                          for j, p in enumerate(POP_NAMES)},
+        "timing": {"train_wall_s_this_invocation": round(wall_s, 2), "epochs_run_this_invocation": epochs_run,
+                   "compile_s": None if compile_s is None else round(compile_s, 2),
+                   "network_s_per_s": round(epochs_run * task.epoch_duration_s * run.n / wall_s, 2) if wall_s else None,
+                   "device": jax.default_backend()},
+        "config": {"loop": _jsonable(asdict(run.config)), **run.meta()},
+    }
+    run.out.mkdir(parents=True, exist_ok=True)
+    (run.out / "results.json").write_text(json.dumps(results, indent=1))
+    t = np.arange(trained_res.hand_m.shape[1]) * dt
+    np.savez_compressed(run.out / "trajectories.npz", t=t, q=np.asarray(trained_res.q_rad),
+                        hand=np.asarray(trained_res.hand_m), u=np.asarray(trained_res.u),
+                        distance=np.asarray(trained_res.distance_m), naive_q=np.asarray(naive_res.q_rad),
+                        naive_hand=np.asarray(naive_res.hand_m), target=target, seeds=np.asarray(seeds))
+    plot_reach(run.out / "reach.png", t, np.asarray(trained_res.hand_m), np.asarray(naive_res.hand_m), target,
+               task.success_radius_m, f"{run.config.arm} arm, {task.target} target")
+    return results
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.generic,)):
+        return x.item()
+    return x
+
+
+def plot_reach(path, t, hand, naive_hand, target, radius, title):
+    """Hand paths and velocity profiles, trained vs naive (the paper's Fig. 6 layout)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
+    for hands, color, label in ((naive_hand, "0.6", "naive"), (hand, "tab:blue", "trained")):
+        for i, h in enumerate(hands):
+            ax[0].plot(h[:, 0] * 100, h[:, 1] * 100, color=color, lw=0.8, alpha=0.7, label=label if i == 0 else None)
+            speed = np.linalg.norm(np.diff(h, axis=0), axis=1) / (t[1] - t[0])
+            ax[1].plot(t[1:], speed, color=color, lw=0.8, alpha=0.7, label=label if i == 0 else None)
+    ax[0].add_patch(plt.Circle(target * 100, radius * 100, fill=False, color="tab:red"))
+    ax[0].plot(*(hand[0, 0] * 100), "ko")
+    ax[0].set(title=f"hand paths ({title})", xlabel="x (cm)", ylabel="y (cm)", aspect="equal")
+    ax[1].set(title="hand speed", xlabel="time (s)", ylabel="speed (m/s)")
+    ax[0].legend()
+    ax[1].legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _add_common(ap):
+    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="simple",
+                    help="simple (authors' kinematic arm, their default) or musculoskeletal")
+    ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
+    ap.add_argument("--target", nargs="+", default=["left"], choices=sorted(TARGET_ANGLES_RAD),
+                    help="target(s); one subfolder of --out each when several (paper: left bottom)")
+    ap.add_argument("--networks", type=int, default=4, help="networks trained in parallel (paper: 30)")
+    ap.add_argument("--seed", type=int, default=0, help="network i uses PRNGKey(seed + i)")
+    ap.add_argument("--epochs", type=int, default=12, help="training epochs (paper: 12)")
+    ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
+    ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
+    ap.add_argument("--no-progress", action="store_true")
+
+
+def _configs(args) -> list[tuple[str, LoopConfig]]:
+    out = []
+    for target in args.target:
+        task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
+                          test_duration_s=args.test_s)
+        out.append((target, LoopConfig(arm=args.arm, backend=args.backend, task=task)))
+    return out
+
+
+def _check(ap, args):
+    if not 1 <= args.networks <= 4096:
+        ap.error(f"--networks = {args.networks}: must be in [1, 4096]")
+    if args.seed < 0:
+        ap.error(f"--seed = {args.seed}: must be >= 0")
+
+
+def train_main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="jaxarm train", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    _add_common(ap)
+    ap.add_argument("--out", type=Path, required=True, help="output folder (a rerun resumes from its checkpoints)")
+    args = ap.parse_args(argv)
+    _check(ap, args)
+    from jaxarm.config.validate import ConfigError
+
+    try:
+        configs = _configs(args)
+    except ConfigError as e:
+        ap.error(str(e))
+    mp = MetaParams.original()
+    summary = {}
+    for target, cfg in configs:
+        out = args.out / target if len(configs) > 1 else args.out
+        run = Run(cfg, args.networks, args.seed, out, mp)
+        carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress)
+        res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, wall, epochs_run,
+                            compile_s)
+        summary[target] = res["success_count"]
+        print(f"{args.arm} arm, {target} target: {res['success_count']}/{args.networks} trained networks reached "
+              f"the {cfg.task.success_radius_m * 100:.0f} cm circle (naive: {res['naive']['success_count']}/"
+              f"{args.networks}); median min distance {np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm"
+              f" -> {out / 'results.json'}")
+    if len(configs) > 1:
+        (args.out / "summary.json").write_text(json.dumps({"success_count": summary, "networks": args.networks}))
+    return 0
+
+
+def test_main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="jaxarm test", description="Re-test networks trained by `jaxarm train`.")
+    ap.add_argument("--from", dest="src", type=Path, required=True, help="a `jaxarm train` output folder")
+    ap.add_argument("--test-s", type=float, default=None, help="test duration, s (default: as trained)")
+    ap.add_argument("--out", type=Path, default=None, help="where to write (default: SRC/test)")
+    args = ap.parse_args(argv)
+    from jaxarm.checkpoint import Checkpointer
+
+    with Checkpointer(args.src / "checkpoints") as ckpt:
+        meta = ckpt.read_meta()
+    if meta["epochs"] != ckpt.latest_step():
+        raise SystemExit(f"{args.src} finished {ckpt.latest_step()} of {meta['epochs']} epochs: rerun `jaxarm train` "
+                         "with the same options to finish it first")
+    task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
+                      test_duration_s=args.test_s or 1.0)
+    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], task=task)
+    mp = MetaParams.from_dict(meta["metaparams"])
+    run = Run(cfg, meta["networks"], meta["seed"], args.out or args.src / "test", mp)
+    init = run.init_fn(network_keys(run.seed, run.n))
+    with Checkpointer(args.src / "checkpoints") as ckpt:
+        (carry, history), _ = ckpt.restore((init, run.empty_history(init)))
+    res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, 0.0, 0)
+    print(f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
+    return 0

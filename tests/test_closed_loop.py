@@ -1,0 +1,96 @@
+"""The closed loop, make_train/test, and the train command's resume."""
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxarm.learning.metaparams import MetaParams, stack
+from jaxarm.loop import LoopConfig
+from jaxarm.task.config import TaskConfig
+from jaxarm.train import make_train
+
+SMALL = LoopConfig(arm="simple", task=TaskConfig(epochs=2, epoch_duration_s=0.5, test_duration_s=0.3))
+
+
+@pytest.fixture(scope="module")
+def fns():
+    return make_train(SMALL)
+
+
+@pytest.fixture(scope="module")
+def trained(fns):
+    return jax.jit(fns.train)(jax.random.PRNGKey(0), MetaParams.original())
+
+
+def test_train_is_deterministic_and_learns_something(fns, trained):
+    tr, hist = trained
+    tr2, _ = jax.jit(fns.train)(jax.random.PRNGKey(0), MetaParams.original())
+    np.testing.assert_array_equal(tr.wgain, tr2.wgain)
+    assert hist.rates_hz.shape == (2, 6)
+    assert int(hist.lost_spikes.sum()) == 0
+    n_plastic = fns.loop.net.layout.n_plastic
+    assert float(jnp.abs(tr.wgain[:n_plastic] - 1.0).max()) > 0  # the critic fired and tags were live
+    assert int(hist.rewards.sum() + hist.punishments.sum()) > 0
+
+
+def test_test_trial_shapes_and_success_rule(fns, trained):
+    res = jax.jit(fns.test)(jax.random.PRNGKey(1), trained[0], MetaParams.original())
+    assert res.hand_m.shape == (31, 2) and res.u.shape == (30, 4)
+    np.testing.assert_allclose(res.hand_m[0], SMALL.task.start_xy_m, atol=1e-5)
+    d = np.linalg.norm(np.asarray(res.hand_m) - np.asarray(SMALL.task.target_xy_m), axis=1)
+    np.testing.assert_allclose(res.distance_m, d, atol=1e-6)
+    assert bool(res.success) == bool((d <= 0.04).any())
+    # readout is silent until the (t - 130, t - 60] window exists: the arm cannot move in the first 120 ms
+    np.testing.assert_array_equal(np.asarray(res.u[:11]), 0.0)
+
+
+def test_vmap_over_metaparameter_sets_compiles_once(fns):
+    traces = []
+
+    def train(key, mp):
+        traces.append(1)
+        return fns.train(key, mp)[1].final_distance_m
+
+    mps = stack([MetaParams.original(), MetaParams.from_dict({"learn_rate": 0.08})])
+    f = jax.jit(jax.vmap(train, in_axes=(None, 0)))
+    out1 = f(jax.random.PRNGKey(0), mps)
+    out2 = f(jax.random.PRNGKey(3), mps)
+    assert out1.shape == (2, 2) and out2.shape == (2, 2)
+    assert len(traces) == 1
+
+
+def test_train_command_resumes_bit_for_bit(tmp_path):
+    from jaxarm.experiment import Run
+
+    mp = MetaParams.original()
+    cfg = LoopConfig(arm="simple", task=TaskConfig(epochs=3, epoch_duration_s=0.3))
+    full = Run(cfg, 2, 5, tmp_path / "full", mp).train(progress=False)
+    Run(cfg, 2, 5, tmp_path / "killed", mp).train(progress=False, stop_after=1)   # "killed" after epoch 1
+    resumed = Run(cfg, 2, 5, tmp_path / "killed", mp).train(progress=False)
+    assert resumed[3] == 2  # only the remaining epochs ran
+    for a, b in zip(jax.tree.leaves((full[0], full[1])), jax.tree.leaves((resumed[0], resumed[1]))):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_train_cli_writes_results(tmp_path):
+    from jaxarm.cli import main
+
+    out = tmp_path / "run"
+    assert main(["train", "--networks", "2", "--epochs", "1", "--epoch-s", "0.3", "--test-s", "0.3",
+                 "--out", str(out), "--no-progress"]) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["n_networks"] == 2 and len(res["networks"]) == 2
+    assert {"seed", "success", "min_distance_m", "final_distance_m", "time_inside_s"} <= set(res["networks"][0])
+    assert res["success_count"] == sum(n["success"] for n in res["networks"])
+    traj = np.load(out / "trajectories.npz")
+    assert traj["q"].shape == (2, 31, 2) and traj["t"][-1] == pytest.approx(0.3)
+    assert (out / "reach.png").stat().st_size > 0
+
+
+def test_loop_config_errors_name_the_field():
+    from jaxarm.config.validate import ConfigError
+
+    with pytest.raises(ConfigError, match="arm"):
+        LoopConfig(arm="robot")
