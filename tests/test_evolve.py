@@ -380,6 +380,12 @@ def test_cli_runs_resumes_and_reports_errors(tmp_path, capsys):
     assert "EvolveConfig.population_size" in capsys.readouterr().err
     assert evolve_main(["--fitness", "no-such-fitness", "--out", str(tmp_path / "x")]) == 2
     assert "quadratic" in capsys.readouterr().err
+    fit.register("test-ignores", lambda options: fit.Fitness(fit.make_quadratic(0.0), ignores=("epochs",)), "test")
+    assert evolve_main(["--fitness", "test-ignores", "--population", "4", "--generations", "1", "--chunk", "1",
+                        "--search", "epochs,learn_rate", "--out", str(tmp_path / "ign")]) == 0
+    assert "does not use epochs" in capsys.readouterr().out
+    saved = json.loads((tmp_path / "ign" / HISTORY_FILE).read_text())
+    assert list(saved["space"]["searched"]) == ["learn_rate"] and saved["space"]["frozen"]["epochs"] == 12.0
     assert evolve_main(["--list-strategies"]) == 0
     listed = capsys.readouterr().out.split()
     assert "CMA_ES" in listed and "SimpleGA" in listed

@@ -105,17 +105,24 @@ def evolve_main(argv: list[str] | None = None) -> int:
             missing = [k for k, v in d.items() if v is None]
             if missing:
                 raise ConfigError(f"--{what}: {missing[0]!r} needs a value (name=value)")
+        options = fitness_registry.FitnessOptions(
+            arm=args.arm, targets=tuple(t.strip() for t in args.targets.split(",") if t.strip()),
+            train_s=args.train_s)
+        fitness = fitness_registry.build(args.fitness, options)
         search = [s.strip() for s in args.search.split(",") if s.strip()] or None
+        ignored = [n for n in fitness.ignores if n not in freeze and (search is None or n in search)]
+        if ignored:
+            print(f"jaxarm evolve: {args.fitness} does not use {', '.join(ignored)}: frozen at the published value")
+            freeze.update({n: ORIGINAL[n] for n in ignored})
+            search = None if search is None else [n for n in search if n not in ignored]
+            if search == []:
+                raise ConfigError(f"--search: {args.fitness} uses none of the fields given")
         space = SearchSpace.make(search=search, freeze=freeze, start=start)
         config = EvolveConfig(strategy=args.strategy, population_size=args.population, generations=args.generations,
                               chunk_size=args.chunk, seeds_per_candidate=args.seeds_per_candidate, seed=args.seed,
                               sigma_init=args.sigma, top_k=args.top_k, seed_mode=args.seed_mode,
                               seed_reduce=args.seed_reduce, strategy_params=strategy_params,
                               eval_batch_size=args.eval_batch)
-        options = fitness_registry.FitnessOptions(
-            arm=args.arm, targets=tuple(t.strip() for t in args.targets.split(",") if t.strip()),
-            train_s=args.train_s)
-        fitness = fitness_registry.build(args.fitness, options)
         meta = {"name": args.fitness, "arm": options.arm, "targets": list(options.targets), "train_s": options.train_s,
                 "network_seconds_per_eval": fitness.network_seconds_per_eval}
         if args.max_chunks is not None and args.max_chunks < 1:
