@@ -48,9 +48,11 @@ class LoopState(NamedTuple):
     babble: BabblingState
 
 
-def make_training_drive(net: Network, seconds: float, mp: MetaParams | None = None, arm_kind: str = "simple"):
+def make_training_drive(net: Network, seconds: float, mp: MetaParams | None = None, arm_kind: str = "simple",
+                        from_state: bool = False):
     """A pure ``simulate(wiring, key) -> (final LoopState, hand (n_intervals, 2) m)`` of one network under the
-    training drive for ``seconds`` (no plasticity). ``vmap`` it over networks."""
+    training drive for ``seconds`` from rest (no plasticity). With ``from_state=True`` it is
+    ``simulate(wiring, key, state)``, continuing a :class:`LoopState` (time keeps running). ``vmap`` it over networks."""
     mp = MetaParams.original() if mp is None else mp
     arm = make_arm(arm_kind)
     cfg = net.config
@@ -60,31 +62,35 @@ def make_training_drive(net: Network, seconds: float, mp: MetaParams | None = No
     params = NetworkParams(max_plast_t_ms=mp.max_plast_t_ms)
     em = net.pops.slice("EM")
 
-    def simulate(wiring, key):
-        k_net, k_babble = jax.random.split(key)
-        state = LoopState(net=net.init(k_net), arm=arm.init(), readout=readout_mod.init_readout(cfg),
-                          babble=init_babbling())
+    def interval(wiring, k_babble, s: LoopState):
+        before = s.net.spike_count[em]
+        net_state, _ = net.run(wiring, s.net, params, cfg.steps_per_interface, collect=False)
+        i = s.readout.pushes                      # intervals completed so far in this run
+        t_ms = (i + 1).astype(jnp.float32) * period
+        em_counts = readout_mod.em_group_counts(cfg, jnp.zeros((cfg.n_all,), jnp.int32).at[em].set(
+            net_state.spike_count[em] - before))
+        ro = readout_mod.push(s.readout, em_counts)
+        u = readout_mod.excitation(cfg, ro, mp.v_em_max, mp.mcmd_spk_wd_ms)
+        arm_state = arm.step(s.arm, u)
+        obs = arm.observe(arm_state)
+        net_state = net.set_lengths(net_state, obs.proprio)
+        rl = (i + 1) % rl_every == 0
+        new_babble, rates = babble(jax.random.fold_in(k_babble, i), s.babble, t_ms, mp)
+        babble_state = jax.tree_util.tree_map(lambda a, b: jnp.where(rl, a, b), new_babble, s.babble)
+        net_state = jax.lax.cond(rl, lambda ns: net.set_em_rates(ns, rates), lambda ns: ns, net_state)
+        return LoopState(net_state, arm_state, ro, babble_state), obs.hand
 
-        def interval(s: LoopState, i):
-            before = s.net.spike_count[em]
-            net_state, _ = net.run(wiring, s.net, params, cfg.steps_per_interface, collect=False)
-            t_ms = (i + 1).astype(jnp.float32) * period
-            em_counts = readout_mod.em_group_counts(cfg, jnp.zeros((cfg.n_all,), jnp.int32).at[em].set(
-                net_state.spike_count[em] - before))
-            ro = readout_mod.push(s.readout, em_counts)
-            u = readout_mod.excitation(cfg, ro, mp.v_em_max, mp.mcmd_spk_wd_ms)
-            arm_state = arm.step(s.arm, u)
-            obs = arm.observe(arm_state)
-            net_state = net.set_lengths(net_state, obs.proprio)
-            rl = (i + 1) % rl_every == 0
-            new_babble, rates = babble(jax.random.fold_in(k_babble, i), s.babble, t_ms, mp)
-            babble_state = jax.tree_util.tree_map(lambda a, b: jnp.where(rl, a, b), new_babble, s.babble)
-            net_state = jax.lax.cond(rl, lambda ns: net.set_em_rates(ns, rates), lambda ns: ns, net_state)
-            return LoopState(net_state, arm_state, ro, babble_state), obs.hand
+    def run(wiring, key, state):
+        k_babble = jax.random.fold_in(key, 1)
+        return jax.lax.scan(lambda s, _: interval(wiring, k_babble, s), state, None, length=n_intervals)
 
-        return jax.lax.scan(interval, state, jnp.arange(n_intervals))
+    def initial(key):
+        return LoopState(net=net.init(jax.random.fold_in(key, 0)), arm=arm.init(),
+                         readout=readout_mod.init_readout(cfg), babble=init_babbling())
 
-    return simulate
+    if from_state:
+        return run
+    return lambda wiring, key: run(wiring, key, initial(key))
 
 
 def measure_rates(config: NetworkConfig, n_networks: int, seconds: float, seed: int):

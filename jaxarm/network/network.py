@@ -10,6 +10,11 @@ Usage::
 
 Units: ms and mV inside; muscle lengths in m at :meth:`Network.set_lengths`.
 
+How a run is organised (all inside one ``lax.scan``; results are exactly those of delivering after every step):
+chunks of one interface period (10 ms), each starting by writing the P input of the whole chunk into the ring
+buffer; inside a chunk, blocks of :attr:`Network.block_steps` cell steps, each followed by the delivery of the
+block's spikes (:mod:`jaxarm.network.synapses`).
+
 State layout (every field may carry leading batch axes under ``vmap``):
 
 * ``step``: () int32 clock steps since the start of the run; the time is ``step * dt_ms``.
