@@ -14,6 +14,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
              "simulate both arms from the start posture under each muscle group; write a plot and a summary"),
     "train": ("jaxarm.experiment:train_main", "train networks to reach a target, test them, write results.json"),
     "test": ("jaxarm.experiment:test_main", "re-test networks trained by `jaxarm train`"),
+    "evolve": ("jaxarm.evolve.cli:evolve_main",
+               "search the metaparameters with an evosax strategy (CMA-ES, GA, ...) in compiled, checkpointed chunks"),
     "wam-sim": ("jaxarm.robot.cli:wam_sim_main", "run the simulated Barrett WAM behind a UDP receiver"),
     "export": ("jaxarm.robot.cli:export_main", "stream a joint trajectory to a WAM (simulated or real) over UDP"),
 }

@@ -1,0 +1,50 @@
+"""The authors' fitness for the search (spec §7): train one network per target, test it, worst target's distance.
+
+Per target the distance is the mean of the test's hand–target distance at ~20 ms and at its last sample (the
+original's ``trajAccuracy`` with a 2-element index list); the fitness is the maximum over targets, in m (lower is
+better). ``success_rate`` (fraction of targets whose test entered the 4 cm circle) is reported beside it.
+
+The training length per evaluation is static (it sets the compiled loop's length): ``train_s`` seconds, run as
+``round(train_s / 30)`` epochs of 30 s (or one shorter epoch when ``train_s < 30``), so the ``epochs``
+metaparameter is ignored (the CLI freezes it).
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jaxarm.evolve import fitness
+from jaxarm.loop import LoopConfig
+from jaxarm.task.config import TaskConfig
+
+EPOCH_S = 30.0
+
+
+def _task(target: str, train_s: float) -> TaskConfig:
+    if train_s < EPOCH_S:
+        return TaskConfig(target=target, epochs=1, epoch_duration_s=train_s)
+    return TaskConfig(target=target, epochs=max(1, round(train_s / EPOCH_S)), epoch_duration_s=EPOCH_S)
+
+
+def make_reaching(options: fitness.FitnessOptions) -> fitness.Fitness:
+    from jaxarm.train import make_train
+
+    train_s = 360.0 if options.train_s is None else float(options.train_s)
+    fns = [make_train(LoopConfig(arm=options.arm, task=_task(t, train_s))) for t in options.targets]
+
+    def fn(key, mp):
+        dist, success = [], []
+        for f, k in zip(fns, jax.random.split(key, len(fns))):  # a few targets: unrolled
+            k_train, k_test = jax.random.split(k)
+            trained, _ = f.train(k_train, mp)
+            result = f.test(k_test, trained, mp)
+            dist.append(0.5 * (result.distance_m[2] + result.distance_m[-1]))
+            success.append(result.success)
+        return jnp.max(jnp.stack(dist)), {"success_rate": jnp.mean(jnp.stack(success).astype(jnp.float32))}
+
+    test_s = fns[0].loop.config.task.test_duration_s
+    return fitness.Fitness(fn, network_seconds_per_eval=len(options.targets) * (train_s + test_s),
+                           ignores=("epochs",))
+
+
+fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (spec §7)")
