@@ -94,3 +94,14 @@ def test_loop_config_errors_name_the_field():
 
     with pytest.raises(ConfigError, match="arm"):
         LoopConfig(arm="robot")
+
+
+def test_reaching_fitness_is_registered_and_finite():
+    from jaxarm.evolve import fitness
+
+    fit = fitness.build("reaching", fitness.FitnessOptions(arm="simple", targets=("left",), train_s=0.3))
+    value, metrics = jax.jit(fit.fn)(jax.random.PRNGKey(0), MetaParams.original())
+    # the hand starts 15.1 cm from the target and cannot move in the test's first 120 ms
+    assert 0.0 < float(value) < 0.4
+    assert 0.0 <= float(metrics["success_rate"]) <= 1.0
+    assert "epochs" in fit.ignores
