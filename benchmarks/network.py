@@ -12,8 +12,8 @@ transient — all P cells fire at 1 ms — that costs extra spike-list passes; i
 ``transient_network_s_per_s``), then timed runs continue from there. Throughput = networks x simulated seconds /
 wall seconds of the compiled run (median over repeats), compile excluded and reported separately.
 
-With the optional ``bench`` extra (brian2) installed, ``--brian2`` would add a Brian2 C++-standalone run of the same
-network; not implemented yet (see README), so the JSON says why it is absent.
+The Brian2 C++-standalone comparison asked for by the issue is not implemented: the JSON's "brian2" field says so
+(and whether brian2 is installed), and no "brian2_network_s_per_s"/"ratio_vs_brian2" keys are emitted.
 """
 from __future__ import annotations
 
