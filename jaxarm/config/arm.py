@@ -15,8 +15,23 @@ ELBOW_RANGE_DEG = (0.0, 140.0)
 ARM_SEGMENTS_M = (0.4634 - 0.173, 0.7169 - 0.4634)
 
 
+class _JointRanges:
+    """Joint ranges in rad from the ``shoulder_range_deg`` / ``elbow_range_deg`` fields (degrees)."""
+
+    shoulder_range_deg: tuple[float, float]
+    elbow_range_deg: tuple[float, float]
+
+    @property
+    def q_min_rad(self) -> tuple[float, float]:
+        return (math.radians(self.shoulder_range_deg[0]), math.radians(self.elbow_range_deg[0]))
+
+    @property
+    def q_max_rad(self) -> tuple[float, float]:
+        return (math.radians(self.shoulder_range_deg[1]), math.radians(self.elbow_range_deg[1]))
+
+
 @dataclass(frozen=True)
-class SimpleArmConfig:
+class SimpleArmConfig(_JointRanges):
     """The authors' kinematic "dummy" arm (spec §8). One step advances one 10 ms update.
 
     Attributes:
@@ -45,17 +60,9 @@ class SimpleArmConfig:
         if len(self.segments_m) != 2 or not all(isinstance(v, (int, float)) and 0 < v <= 2 for v in self.segments_m):
             raise ConfigError(f"SimpleArmConfig.segments_m = {self.segments_m!r}: a pair (upper arm, forearm), each in (0, 2] m")
 
-    @property
-    def q_min_rad(self) -> tuple[float, float]:
-        return (math.radians(self.shoulder_range_deg[0]), math.radians(self.elbow_range_deg[0]))
-
-    @property
-    def q_max_rad(self) -> tuple[float, float]:
-        return (math.radians(self.shoulder_range_deg[1]), math.radians(self.elbow_range_deg[1]))
-
 
 @dataclass(frozen=True)
-class MusculoskeletalArmConfig:
+class MusculoskeletalArmConfig(_JointRanges):
     """The authors' OpenSim arm (SI units). One step advances ``dt_s`` (default 1 ms, the paper's arm step).
 
     Attributes:
@@ -119,11 +126,3 @@ class MusculoskeletalArmConfig:
         if len(q0) != 2 or not all(lo[i] <= q0[i] <= hi[i] for i in range(2)):
             raise ConfigError(f"MusculoskeletalArmConfig.start_posture_rad = {q0!r}: must lie within the joint ranges "
                               f"shoulder [{lo[0]:.4f}, {hi[0]:.4f}] rad, elbow [{lo[1]:.4f}, {hi[1]:.4f}] rad")
-
-    @property
-    def q_min_rad(self) -> tuple[float, float]:
-        return (math.radians(self.shoulder_range_deg[0]), math.radians(self.elbow_range_deg[0]))
-
-    @property
-    def q_max_rad(self) -> tuple[float, float]:
-        return (math.radians(self.shoulder_range_deg[1]), math.radians(self.elbow_range_deg[1]))

@@ -43,7 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.config.validate import ConfigError, check_range
-from jaxarm.learning.metaparams import BOUNDS, NAMES, MetaParams
+from jaxarm.learning.metaparams import BOUNDS, NAMES, MetaParams, to_unit
 
 ARM_KINDS = ("simple", "musculoskeletal")
 
@@ -156,18 +156,6 @@ def _golden_point(n: int) -> np.ndarray:
 QUADRATIC_OPTIMUM_UNIT = _golden_point(len(NAMES))
 
 
-def _unit_of_bounds(mp: MetaParams):
-    """``mp`` on the unit cube of :data:`BOUNDS` (the table's ranges, not a space's), (len(NAMES),)."""
-    cols = []
-    for name in NAMES:
-        b, v = BOUNDS[name], jnp.asarray(getattr(mp, name), jnp.float32)
-        if b.scale == "log":
-            cols.append((jnp.log(v) - math.log(b.lo)) / (math.log(b.hi) - math.log(b.lo)))
-        else:
-            cols.append((v - b.lo) / (b.hi - b.lo))
-    return jnp.stack(cols, axis=-1)
-
-
 def quadratic_optimum() -> MetaParams:
     """The ``quadratic`` benchmark's optimum as metaparameters (inside :data:`BOUNDS`)."""
     out = {}
@@ -191,7 +179,7 @@ def make_quadratic(noise_std: float = 0.01, diverge_above: float | None = None) 
     i_lr = NAMES.index("learn_rate")
 
     def fitness(key, mp):
-        u = _unit_of_bounds(mp)
+        u = to_unit(mp)
         sq = (u - u_star) ** 2
         f = jnp.mean(sq) + noise_std * jax.random.normal(key, (), jnp.float32)
         if diverge_above is not None:
