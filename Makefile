@@ -22,3 +22,6 @@ test-slow: $(BIN)/jaxarm
 
 bench: $(BIN)/jaxarm
 	$(BIN)/python benchmarks/arm.py --json
+	$(BIN)/python benchmarks/network.py --json
+	$(BIN)/python benchmarks/train.py --json
+	$(BIN)/python benchmarks/wam.py
