@@ -95,9 +95,12 @@ def main(argv: list[str] | None = None) -> int:
                            for i, c in enumerate(CONDITIONS)}}
     plot(results, args.out / "arms.png", {n: a.dt_s for n, a in arms.items()})
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
-    print(f"{'condition':<20}" + "".join(f"{n + ' final q (deg)':>34}" for n in arms))
+    print(f"final joint angles (shoulder, elbow) in deg after {args.duration_s} s; group driven at "
+          f"{args.excitation} for {args.drive_s} s")
+    print(f"{'condition':<20}" + "".join(f"{n:>22}" for n in arms))
     for c in CONDITIONS:
-        cells = "".join(f"{str(summary['arms'][n]['conditions'][c]['final_q_deg']):>34}" for n in arms)
+        cells = "".join("{:>22}".format("({:7.1f}, {:6.1f})".format(*summary["arms"][n]["conditions"][c]["final_q_deg"]))
+                        for n in arms)
         print(f"{c:<20}{cells}")
     print(f"wrote {args.out / 'arms.png'} and {args.out / 'summary.json'}")
     return 0
