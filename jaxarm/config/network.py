@@ -43,14 +43,19 @@ class NetworkConfig:
             code does not clip (spec §3, §11.7); False reproduces it.
         readout_bins: length of the EM spike-count history, in interface periods; must cover the readout window
             plus its lag (default 76.08 + 50 ms).
-        spike_capacity: spike-list length per step (lax.top_k) of each spike group (ES, EM, inhibitory). Spikes
-            beyond it in one step are delivered by further passes in that step (exact); each extra pass is counted
-            in ``State.counters.extra_passes`` and ``max_passes`` bounds the work.
+        spike_capacity: spike-list length per delivery block (lax.top_k) of each spike group (ES, EM, inhibitory)
+            for one network, and the shortest list of a batch. Spikes beyond it in one block are delivered by
+            further passes in that block (exact); each extra pass is counted in ``State.counters.extra_passes`` and
+            ``max_passes`` bounds the work.
+        batch_spike_capacity: under ``vmap`` one list serves the whole batch of B networks, of length
+            ``max(spike_capacity, ceil(B * batch_spike_capacity))`` per group: entries per network, sized for the
+            mean spikes per block (~1 ES, ~0.3 EM, ~0.3 inhibitory at the original's rates and dt 0.25 ms) with
+            room to spare; a batch's total is far steadier than one network's, so the list can be short.
         block_steps: upper limit on the steps per delivery block (0 = as long as exactness allows, see
             ``Network.block_steps``; 1 = deliver after every step). Changes speed, not results.
-        max_passes: most spike-list passes per block; spikes still left after them are lost and counted in
-            ``State.counters.lost_spikes`` (a test fails if any are). 0 = enough passes for every cell of the
-            largest group to fire in one block, so nothing can be lost.
+        max_passes: most spike-list passes per block and group; spikes still left after them are lost and counted
+            in ``State.counters.lost_spikes`` (a test fails if any are). 0 = enough passes for every cell of every
+            network to fire in one block, so nothing can be lost.
         out_capacity: out-degree capacity of the per-presynaptic-cell delivery rows; 0 = derive one per spike group
             from the sizes (mean + 6 sd). Synapses beyond it are counted in ``Wiring.out_overflow``.
         noise_max_rate_hz: highest background rate the Poisson noise tables must represent, Hz (sets how many
@@ -71,6 +76,7 @@ class NetworkConfig:
     readout_clip: bool = True
     readout_bins: int = 16
     spike_capacity: tuple[int, int, int] = (16, 8, 8)
+    batch_spike_capacity: tuple[float, float, float] = (2.0, 1.0, 1.0)
     block_steps: int = 0
     max_passes: int = 0
     out_capacity: int = 0
@@ -109,6 +115,11 @@ class NetworkConfig:
                            for k in self.spike_capacity)):
             raise ConfigError(f"NetworkConfig.spike_capacity = {self.spike_capacity!r}: a tuple of 3 integers in "
                               "[1, 4096] (ES, EM, inhibitory spike groups)")
+        if (not isinstance(self.batch_spike_capacity, tuple) or len(self.batch_spike_capacity) != 3
+                or not all(isinstance(k, (int, float)) and not isinstance(k, bool) and 0.01 <= k <= 4096
+                           for k in self.batch_spike_capacity)):
+            raise ConfigError(f"NetworkConfig.batch_spike_capacity = {self.batch_spike_capacity!r}: a tuple of 3 "
+                              "numbers in [0.01, 4096] (spike-list entries per network of a batch: ES, EM, inhibitory)")
         check_range(self, "block_steps", 0, 10_000, integer=True)
         check_range(self, "max_passes", 0, 100_000, integer=True)
         check_range(self, "out_capacity", 0, 1_000_000, integer=True)

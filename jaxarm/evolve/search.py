@@ -334,11 +334,16 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig)
         else:
             keys = jax.random.split(k_eval, P * S).reshape(P, S, 2)
         mps = space.to_metaparams(population)
-        per_candidate = jax.vmap(evaluate_one, in_axes=(0, None))   # one candidate, its S seeds
+        # One flat vmap over candidates x seeds (not a vmap of a vmap): the network's batched spike delivery then
+        # serves all P * S networks with one spike list (jaxarm.network.synapses).
+        flat_keys = keys.reshape((P * S,) + keys.shape[2:])
+        flat_mps = jax.tree_util.tree_map(lambda x: jnp.repeat(x, S, axis=0), mps)
         if config.eval_batch_size in (0, P):
-            f, metrics = jax.vmap(per_candidate)(keys, mps)      # (P, S), {name: (P, S)}
+            f, metrics = jax.vmap(evaluate_one)(flat_keys, flat_mps)
         else:
-            f, metrics = lax.map(lambda a: per_candidate(*a), (keys, mps), batch_size=config.eval_batch_size)
+            f, metrics = lax.map(lambda a: evaluate_one(*a), (flat_keys, flat_mps),
+                                 batch_size=config.eval_batch_size * S)
+        f, metrics = f.reshape(P, S), {m: v.reshape(P, S) for m, v in metrics.items()}   # (P, S), {name: (P, S)}
         fitness, bad = _combine_seeds(f, config.seed_reduce)
         return fitness, jnp.sum(bad, axis=1), {m: jnp.mean(v, axis=1) for m, v in metrics.items()}
 

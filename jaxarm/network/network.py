@@ -38,6 +38,7 @@ count EM spikes per group (:func:`jaxarm.network.readout.em_group_counts`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
@@ -120,18 +121,21 @@ class Network:
 
     @cached_property
     def max_passes(self) -> int:
-        """Spike-list passes allowed per block: the configured limit, or (0) enough for every cell to fire."""
+        """Spike-list passes allowed per block and group: the configured limit, or (0) enough for every cell of
+        every network to fire, at any batch size (a list holds at least min(capacity, batch share) per network)."""
         if self.config.max_passes:
             return self.config.max_passes
         sizes = [sum(self.config.size(p) for p in g) for g in SPIKE_GROUPS]
-        return max(-(-n // k) for n, k in zip(sizes, self.config.spike_capacity))
+        shares = [min(k, s) for k, s in zip(self.config.spike_capacity, self.config.batch_spike_capacity)]
+        return max(math.ceil(n / s) for n, s in zip(sizes, shares))
 
     @cached_property
     def delivery_shape(self) -> syn_mod.DeliveryShape:
         lay, c = self.layout, self.config
         slices = tuple(tuple((self.pops.start[p], self.pops.stop[p]) for p in g) for g in SPIKE_GROUPS)
         return syn_mod.DeliveryShape(group_slices=slices, excitatory=lay.group_is_excitatory,
-                                     capacity=tuple(c.spike_capacity), max_passes=self.max_passes, n_slots=self.n_slots,
+                                     capacity=tuple(c.spike_capacity),
+                                     batch_share=tuple(float(x) for x in c.batch_spike_capacity), max_passes=self.max_passes, n_slots=self.n_slots,
                                      n_cells=c.n_cells, n_plastic=lay.n_plastic, bookkeeping=c.plasticity_bookkeeping)
 
     @cached_property

@@ -12,26 +12,30 @@ delivered, each at its own spike step + delay — exactly what per-step delivery
 lists, and lists sized for a block rather than for a step. Work is proportional to the spike-list lengths, never to
 the number of synapses. For each spike group (ES; EM; inhibitory cells, :data:`jaxarm.network.wiring.SPIKE_GROUPS`):
 
-1. the spike list: ``lax.top_k`` of the group's "fired in this block" vector gives at most ``spike_capacity[g]``
-   cells; unused entries point to the group's "no spike" row, whose synapses have weight 0;
+1. the spike list: ``lax.top_k`` of the group's "fired in this block" vector gives at most K cells; unused entries
+   point to the group's "no spike" row, whose synapses have weight 0. Under ``vmap`` the list is one for the whole
+   batch (top_k over the batch's flattened vector, K = ``max(spike_capacity, ceil(B * batch_spike_capacity))``), so
+   its length follows the batch's mean number of spikes, which is steady, rather than the busiest network's;
 2. their rows of the group tables give, per synapse, target channel, delay, base weight and NMDA weight; the gain
-   ``wgain`` of each synapse multiplies the AMPA/GABA weight; two flat scatter-adds (one for inhibitory groups,
-   which have no NMDA) write them into slot (spike step + delay) % n_slots;
+   ``wgain`` of each synapse multiplies the AMPA/GABA weight; one flat scatter-add over the flattened batch of rings
+   writes them into slot (spike step + delay) % n_slots;
 3. with plasticity bookkeeping, the same list tags the plastic inputs of every listed cell: ``pdope = t`` (its spike
    time) where the presynaptic cell's last spike at or before t was at most ``max_plast_t_ms`` earlier (spec §4),
    by a scatter-max (tags only move forward in time, so max = overwrite). A presynaptic cell that fired later in the
    same block is looked up by its previous spike (cells keep their last two spike times);
-4. if a group had more spikes than its list holds, further passes take the next ones in the same block (exact;
-   every extra pass is counted in :class:`Counters`). After ``max_passes`` passes anything left is lost and
+4. if the list could not hold all spikes, further passes take the next ones in the same block (exact; every network
+   with spikes left counts the pass in :class:`Counters`). After ``max_passes`` passes anything left is lost and
    counted — a test fails on that.
 
 Speed notes (measured on the 2-core CPU, 60 networks; see benchmarks/network.py):
 
 * the slot is cleared with zeros made data-dependent on the slot just read, else XLA copies the ring every step;
-* under ``vmap`` a ``while_loop`` with a per-network predicate selects its whole carry (ring, tags) every pass;
-  :func:`deliver_spikes` is therefore a ``custom_vmap`` whose batched rule runs the extra passes for all networks
-  at once while any network needs one (networks with nothing left deliver "no spike" rows of zeros) and writes
-  with one scatter over the flattened batch. Under nested ``vmap`` it stays exact but loses that advantage.
+* the scatter-add is the cost of delivery and it is proportional to the list length times the row width, so
+  per-network lists sized for a network's bursts (16 ES entries where ~1 is used) wasted most of it: one list per
+  batch halved the whole network step at 60 networks (7.5 -> 15.7 network-s/s, same machine and session);
+* :func:`deliver_block` is a ``custom_vmap`` whose batched rule is that batch-wide delivery (a plain ``vmap`` of a
+  ``while_loop`` with a per-network predicate would select the whole ring every pass). Under nested ``vmap`` it
+  stays exact but only the innermost axis shares a list: flatten networks into one batch axis where possible.
 
 P -> ES input (:func:`deliver_p_window`): P trains change only when the loop sets new muscle lengths, so at the start
 of every chunk of steps the P spikes of the whole chunk are known; their synapses (4224, each P->ES synapse once per
@@ -41,6 +45,7 @@ all-P volley at 1 ms is delivered exactly. The ring therefore spans a chunk plus
 from __future__ import annotations
 
 import functools
+import math
 from typing import NamedTuple
 
 import jax
@@ -83,12 +88,18 @@ class DeliveryShape(NamedTuple):
 
     group_slices: tuple          # per group: tuple of (start, stop) global-id ranges, concatenated
     excitatory: tuple            # per group: has NMDA
-    capacity: tuple              # per group: spike-list length
+    capacity: tuple              # per group: spike-list length of one network (the floor of a batch's list)
+    batch_share: tuple           # per group: spike-list entries per network of a batch (float)
     max_passes: int
     n_slots: int
     n_cells: int
     n_plastic: int
     bookkeeping: bool
+
+
+def list_length(shape: DeliveryShape, g: int, n_networks: int) -> int:
+    """Spike-list length of group ``g`` for a batch of ``n_networks``: ``max(capacity, ceil(n * batch_share))``."""
+    return max(shape.capacity[g], math.ceil(n_networks * shape.batch_share[g] - 1e-9))
 
 
 def _group_values(per_cell, shape: DeliveryShape):
@@ -100,86 +111,89 @@ def _group_values(per_cell, shape: DeliveryShape):
     return out
 
 
-def _one_pass(remaining, spike_step, last_spike_ms, prev_spike_ms, wgain, window_ms, groups, shape: DeliveryShape,
-              dt_ms: float):
-    """One network, one pass: take up to capacity[g] of the remaining spikes per group. Returns (ring index, ring
-    value, tag index, tag value, remaining); the tag arrays are empty without bookkeeping."""
+def _row(table, net, cell, batched: bool):
+    """Rows ``cell`` (K,) of a group table, of network ``net`` (K,) when the tables are batched."""
+    return table[net, cell] if batched else table[cell]
+
+
+def _group_pass(ring, pdope_ms, remaining, steps, last_spike_ms, prev_spike_ms, wgain, window_ms, tables: GroupTables,
+                tables_batched: bool, g: int, k: int, shape: DeliveryShape, dt_ms: float):
+    """One pass of group ``g`` over the whole batch: the first ``k`` of the remaining spikes of all networks
+    (flattened network-major), delivered by one scatter-add into the flattened ring and tagged by one scatter-max.
+
+    ``remaining``/``steps``: (B * n_g,) "not yet delivered" (1.0/0.0) and spike step of every cell of the group.
+    Returns (ring, pdope_ms, remaining)."""
     n = shape.n_cells
-    ring_i, ring_v, tag_i, tag_v, left = [], [], [], [], []
-    for g, (tables, rem, steps) in enumerate(zip(groups, remaining, spike_step)):
-        tables: GroupTables
-        n_g = rem.shape[-1]
-        vals, ids = jax.lax.top_k(rem, shape.capacity[g])
-        ids = jnp.where(vals > 0, ids, n_g)                     # n_g = the "no spike" row
-        s = jnp.take(steps, ids, mode="fill", fill_value=0)     # (K,) spike step of each listed cell
-        packed = tables.out_packed[ids]                         # (K, C) row gathers
-        syn = tables.out_syn[ids]
-        w = tables.out_weight[ids] * jnp.take(wgain, syn, mode="clip")
-        delay = packed & ((1 << DELAY_BITS) - 1)
-        index = jax.lax.rem(s[:, None] + delay, shape.n_slots) * (N_CHANNELS * n) + (packed >> DELAY_BITS)
-        ring_i.append(index.reshape(-1))
-        ring_v.append(w.reshape(-1))
-        if shape.excitatory[g]:
-            ring_i.append(index.reshape(-1) + n)
-            ring_v.append(tables.out_nmda[ids].reshape(-1))
-        if shape.bookkeeping:
-            t_post = (s.astype(jnp.float32) * dt_ms)[:, None]
-            pre = tables.in_plastic_pre[ids]
-            last = jnp.take(last_spike_ms, pre, mode="fill", fill_value=NEVER_SPIKED_MS)
-            prev = jnp.take(prev_spike_ms, pre, mode="fill", fill_value=NEVER_SPIKED_MS)
-            last = jnp.where(last <= t_post, last, prev)      # the presynaptic spike at or before t_post
-            hit = (last >= 0.0) & (t_post - last <= window_ms)
-            tag_i.append(jnp.minimum(tables.in_plastic[ids], shape.n_plastic - 1).reshape(-1))
-            tag_v.append(jnp.where(hit, t_post, NO_TAG_MS).astype(jnp.float32).reshape(-1))
-        left.append(rem.at[ids].set(0.0, mode="drop"))
-    cat = lambda xs, dt: jnp.concatenate(xs) if xs else jnp.zeros((0,), dt)  # noqa: E731
-    return cat(ring_i, jnp.int32), cat(ring_v, jnp.float32), cat(tag_i, jnp.int32), cat(tag_v, jnp.float32), left
+    b, r = ring.shape
+    n_g = remaining.shape[0] // b
+    vals, flat = jax.lax.top_k(remaining, k)
+    valid = vals > 0
+    net = jnp.where(valid, flat // n_g, 0)
+    cell = jnp.where(valid, flat % n_g, n_g)                   # n_g = the "no spike" row (weights 0)
+    s = jnp.where(valid, steps[flat], 0)                        # (K,) spike step of each listed cell
+    packed = _row(tables.out_packed, net, cell, tables_batched)  # (K, C) row gathers
+    syn = _row(tables.out_syn, net, cell, tables_batched)
+    w = _row(tables.out_weight, net, cell, tables_batched) * wgain.at[net[:, None], syn].get(mode="clip")
+    delay = packed & ((1 << DELAY_BITS) - 1)
+    index = (net * r)[:, None] + jax.lax.rem(s[:, None] + delay, shape.n_slots) * (N_CHANNELS * n) + (
+        packed >> DELAY_BITS)
+    if shape.excitatory[g]:
+        index = jnp.concatenate([index, index + n], axis=1)    # AMPA row then NMDA row of each spike
+        w = jnp.concatenate([w, _row(tables.out_nmda, net, cell, tables_batched)], axis=1)
+    ring = ring.reshape(-1).at[index.reshape(-1)].add(w.reshape(-1), mode="promise_in_bounds").reshape(b, r)
+    if shape.bookkeeping:
+        p = pdope_ms.shape[-1]
+        t_post = (s.astype(jnp.float32) * dt_ms)[:, None]
+        pre = _row(tables.in_plastic_pre, net, cell, tables_batched)
+        last = last_spike_ms.at[net[:, None], pre].get(mode="fill", fill_value=NEVER_SPIKED_MS)
+        prev = prev_spike_ms.at[net[:, None], pre].get(mode="fill", fill_value=NEVER_SPIKED_MS)
+        last = jnp.where(last <= t_post, last, prev)          # the presynaptic spike at or before t_post
+        hit = (last >= 0.0) & (t_post - last <= window_ms[net][:, None])
+        tag = (net * p)[:, None] + jnp.minimum(_row(tables.in_plastic, net, cell, tables_batched), p - 1)
+        pdope_ms = pdope_ms.reshape(-1).at[tag.reshape(-1)].max(
+            jnp.where(hit, t_post, NO_TAG_MS).astype(jnp.float32).reshape(-1), mode="promise_in_bounds"
+        ).reshape(b, p)
+    remaining = remaining.at[flat].set(0.0, mode="promise_in_bounds")
+    return ring, pdope_ms, remaining
 
 
 def _deliver_batched(ring, pdope_ms, counters: Counters, spike_step, last_spike_ms, prev_spike_ms, wgain, window_ms,
                      groups, groups_batched: bool, shape: DeliveryShape, dt_ms: float):
     """Delivery for a batch: every argument but ``groups`` has a leading batch axis B. ``spike_step``: (B, n_cells)
-    int32 step of each cell's spike in this block, -1 if none."""
-    b, r = ring.shape
-    one_pass = jax.vmap(functools.partial(_one_pass, shape=shape, dt_ms=dt_ms),
-                        in_axes=(0, 0, 0, 0, 0, 0, 0 if groups_batched else None))
-    ring_offset = (jnp.arange(b, dtype=jnp.int32) * r)[:, None]
-    p = pdope_ms.shape[-1]
-    tag_offset = (jnp.arange(b, dtype=jnp.int32) * p)[:, None]
-    steps = _group_values(spike_step, shape)
+    int32 step of each cell's spike in this block, -1 if none.
 
-    def apply(ring, pdope_ms, remaining):
-        ri, rv, ti, tv, remaining = one_pass(remaining, steps, last_spike_ms, prev_spike_ms, wgain, window_ms, groups)
-        # one scatter over the flattened batch (about 2x faster than a batched scatter on XLA:CPU)
-        ring = ring.reshape(-1).at[(ri + ring_offset).reshape(-1)].add(
-            rv.reshape(-1), mode="promise_in_bounds").reshape(b, r)
-        if shape.bookkeeping:
-            pdope_ms = pdope_ms.reshape(-1).at[(ti + tag_offset).reshape(-1)].max(
-                tv.reshape(-1), mode="promise_in_bounds").reshape(b, p)
-        return ring, pdope_ms, remaining
-
-    def left_per_network(remaining):
-        return sum(jnp.sum(x > 0, axis=-1, dtype=jnp.int32) for x in remaining)
-
-    remaining = [(x >= 0).astype(jnp.float32) for x in steps]
-    ring, pdope_ms, remaining = apply(ring, pdope_ms, remaining)
-
-    def more(carry):
-        _, _, remaining, passes, _ = carry
-        return (passes < shape.max_passes) & jnp.any(left_per_network(remaining) > 0)
-
-    def again(carry):
-        ring, pdope_ms, remaining, passes, extra = carry
-        extra = extra + (left_per_network(remaining) > 0).astype(jnp.int32)
-        ring, pdope_ms, remaining = apply(ring, pdope_ms, remaining)
-        return ring, pdope_ms, remaining, passes + 1, extra
-
+    Per spike group, one spike list serves the whole batch (its length :func:`list_length` grows with B), so the
+    work follows the batch's total number of spikes rather than the busiest network's: a burst in one network costs
+    extra passes of one list, not of every network's list."""
+    b = ring.shape[0]
     extra = jnp.zeros((b,), jnp.int32)
-    if shape.max_passes > 1:
-        ring, pdope_ms, remaining, _, extra = jax.lax.while_loop(
-            more, again, (ring, pdope_ms, remaining, jnp.ones((), jnp.int32), extra))
-    counters = Counters(extra_passes=counters.extra_passes + extra,
-                        lost_spikes=counters.lost_spikes + left_per_network(remaining))
+    lost = jnp.zeros((b,), jnp.int32)
+    for g, (tables, steps) in enumerate(zip(groups, _group_values(spike_step, shape))):
+        n_g = steps.shape[-1]
+        k = min(list_length(shape, g, b), b * n_g)
+        steps = steps.reshape(-1)
+        one = functools.partial(_group_pass, steps=steps, last_spike_ms=last_spike_ms, prev_spike_ms=prev_spike_ms,
+                                wgain=wgain, window_ms=window_ms, tables=tables, tables_batched=groups_batched, g=g,
+                                k=k, shape=shape, dt_ms=dt_ms)
+
+        def left_per_network(remaining, n_g=n_g):
+            return jnp.sum(remaining.reshape(b, n_g) > 0, axis=-1, dtype=jnp.int32)
+
+        ring, pdope_ms, remaining = one(ring, pdope_ms, (steps >= 0).astype(jnp.float32))
+        if shape.max_passes > 1 and k < b * n_g:
+            def more(carry):
+                return (carry[3] < shape.max_passes) & jnp.any(carry[2] > 0)
+
+            def again(carry):
+                ring, pdope_ms, remaining, passes, extra = carry
+                extra = extra + (left_per_network(remaining) > 0).astype(jnp.int32)
+                ring, pdope_ms, remaining = one(ring, pdope_ms, remaining)
+                return ring, pdope_ms, remaining, passes + 1, extra
+
+            ring, pdope_ms, remaining, _, extra = jax.lax.while_loop(
+                more, again, (ring, pdope_ms, remaining, jnp.ones((), jnp.int32), extra))
+        lost = lost + left_per_network(remaining)
+    counters = Counters(extra_passes=counters.extra_passes + extra, lost_spikes=counters.lost_spikes + lost)
     return ring, pdope_ms, counters
 
 
