@@ -110,6 +110,40 @@ class Run:
         return self.init_fn(network_keys(self.seed, self.n)).trained
 
 
+@functools.lru_cache(maxsize=8)
+def _compiled_sets(config: LoopConfig):
+    """As :func:`_compiled`, with the metaparameters vmapped too: network i trains and tests with set i."""
+    fns, init_fn, _, _ = _compiled(config)
+    return (fns, init_fn, jax.jit(jax.vmap(fns.epoch, in_axes=(0, 0))),
+            jax.jit(jax.vmap(fns.test, in_axes=(0, 0, 0))))
+
+
+def unstack(mps: MetaParams) -> list[MetaParams]:
+    """The sets of a stacked MetaParams (leading axis), in order."""
+    n = int(jnp.shape(mps.learn_rate)[0])
+    return [jax.tree.map(lambda x, i=i: x[i], mps) for i in range(n)]
+
+
+class SetsRun(Run):
+    """N networks, network i (key ``PRNGKey(seed + i)``) trained and tested with metaparameter set i.
+
+    ``mps`` is a :class:`MetaParams` stacked along a leading axis of length N
+    (:func:`jaxarm.learning.metaparams.stack`); the paper's statistic (its top 30 configurations, one network each)
+    is such a run. Everything else (checkpoints, resume, outputs) is :class:`Run`'s; ``meta()["metaparams"]`` is the
+    list of the N sets.
+    """
+
+    def __init__(self, config: LoopConfig, seed: int, out: Path, mps: MetaParams):
+        self.config, self.seed, self.out, self.mp = config, seed, out, mps
+        self.n = int(jnp.shape(mps.learn_rate)[0])
+        self.fns, self.init_fn, self.epoch_fn, self.test_fn = _compiled_sets(config)
+
+    def meta(self) -> dict:
+        return {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
+                "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
+                "epoch_s": self.config.task.epoch_duration_s, "metaparams": [m.to_dict() for m in unstack(self.mp)]}
+
+
 def _progress(total, initial, enabled, desc):
     if not enabled:
         return None
@@ -289,8 +323,13 @@ def test_main(argv: list[str] | None = None) -> int:
     task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
                       test_duration_s=args.test_s or 1.0)
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], task=task)
-    mp = MetaParams.from_dict(meta["metaparams"])
-    run = Run(cfg, meta["networks"], meta["seed"], args.out or args.src / "test", mp)
+    out = args.out or args.src / "test"
+    if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
+        from jaxarm.learning.metaparams import stack
+
+        run = SetsRun(cfg, meta["seed"], out, stack([MetaParams.from_dict(m) for m in meta["metaparams"]]))
+    else:
+        run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]))
     init = run.init_fn(network_keys(run.seed, run.n))
     with Checkpointer(args.src / "checkpoints") as ckpt:
         (carry, history), _ = ckpt.restore((init, run.empty_history(init)))

@@ -1,0 +1,289 @@
+"""Named metaparameter presets: the sets ``jaxarm reproduce`` trains, with where they came from.
+
+A preset is a JSON file ``jaxarm/presets/NAME.json`` (shipped with the package) holding:
+
+* ``name``, ``description``, ``arms`` (the arm(s) it was tuned for) and optionally ``targets``;
+* ``best``: a complete metaparameter set (every :class:`~jaxarm.learning.metaparams.MetaParams` field, in the
+  field's own units) -- what ``jaxarm reproduce`` trains with N seeds;
+* ``top`` (optional): up to 30 ranked sets, best first, each ``{"rank", "fitness", "generation",
+  "metaparams"}`` -- the paper's statistic trains one network with each;
+* ``provenance``: the command, search seed, cost (wall time, evaluations, network-seconds) and date that produced
+  it.
+
+The built-in preset ``original`` is :meth:`MetaParams.original` (the authors' values from ``main.hoc``, spec §7); it
+has no top list: the authors' other 29 configurations are not available.
+
+Making a preset from a finished search (its ``top_k.json`` and ``history.json``)::
+
+    jaxarm evolve --arm musculoskeletal --targets left,bottom --out runs/evolve-msarm ...
+    jaxarm reproduce --make-preset msarm-cmaes --from-search runs/evolve-msarm \\
+        --search-command "jaxarm evolve --arm musculoskeletal ..."      # the exact command, if you have it
+    git add jaxarm/presets/msarm-cmaes.json
+
+or from Python, :func:`from_search` then :func:`save`. Every set is checked against
+:data:`~jaxarm.learning.metaparams.BOUNDS` when a preset is made and when it is loaded; a value outside raises
+:class:`ConfigError` naming the field and the range.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import re
+import shlex
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from jaxarm.config.validate import ConfigError
+from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams
+
+#: Where the package's preset files live (``--make-preset`` writes here by default, so the file can be committed).
+PRESET_DIR = Path(__file__).resolve().parent.parent / "presets"
+#: The built-in preset's name.
+ORIGINAL_NAME = "original"
+#: The paper reported its 30 best configurations.
+MAX_TOP = 30
+ARMS = ("simple", "musculoskeletal")
+_NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.-]{0,63}$")
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named metaparameter preset (see the module docstring). ``best`` and the sets of ``top`` are complete
+    ``{field: value}`` dicts, checked against BOUNDS on construction."""
+
+    name: str
+    description: str
+    arms: tuple[str, ...]
+    best: dict
+    top: tuple[dict, ...] = ()
+    provenance: dict = field(default_factory=dict)
+    targets: tuple[str, ...] | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not _NAME_RE.match(self.name):
+            raise ConfigError(f"preset name {self.name!r}: use 1-64 characters of a-z, 0-9, '_', '.', '-' "
+                              "(starting with a letter or digit)")
+        arms = tuple(self.arms)
+        bad = [a for a in arms if a not in ARMS]
+        if not arms or bad:
+            raise ConfigError(f"preset {self.name!r} arms = {list(arms)!r}: must be a non-empty list of "
+                              f"{', '.join(map(repr, ARMS))}")
+        object.__setattr__(self, "arms", arms)
+        object.__setattr__(self, "best", check_metaparams(self.best, f"preset {self.name!r} best"))
+        top = tuple(self.top or ())
+        if len(top) > MAX_TOP:
+            raise ConfigError(f"preset {self.name!r} top: {len(top)} sets; at most {MAX_TOP}")
+        rows = []
+        for i, row in enumerate(top):
+            if not isinstance(row, dict) or "metaparams" not in row:
+                raise ConfigError(f"preset {self.name!r} top[{i}]: must be an object with a 'metaparams' set")
+            rows.append({**row, "metaparams": check_metaparams(row["metaparams"], f"preset {self.name!r} top[{i}]")})
+        object.__setattr__(self, "top", tuple(rows))
+        if self.targets is not None:
+            object.__setattr__(self, "targets", tuple(self.targets))
+
+    # ------------------------------------------------------------------ use
+    def best_metaparams(self) -> MetaParams:
+        return MetaParams.from_dict(self.best)
+
+    def top_metaparams(self, n: int = MAX_TOP) -> list[MetaParams]:
+        """The first ``n`` sets of the top list (fewer when the list is shorter; none without one)."""
+        return [MetaParams.from_dict(row["metaparams"]) for row in self.top[:n]]
+
+    def to_json(self) -> dict:
+        d = {"name": self.name, "description": self.description, "arms": list(self.arms)}
+        if self.targets is not None:
+            d["targets"] = list(self.targets)
+        d.update(best=self.best, top=list(self.top), provenance=self.provenance)
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict, where: str = "preset") -> "Preset":
+        if not isinstance(d, dict):
+            raise ConfigError(f"{where}: a preset file holds one JSON object")
+        known = {"name", "description", "arms", "targets", "best", "top", "provenance"}
+        unknown = sorted(set(d) - known)
+        missing = [k for k in ("name", "arms", "best") if k not in d]
+        if unknown or missing:
+            raise ConfigError(f"{where}: " + "; ".join(
+                ([f"unknown key(s) {unknown}"] if unknown else []) + ([f"missing key(s) {missing}"] if missing else []))
+                + f" (keys: {', '.join(sorted(known))})")
+        return cls(name=d["name"], description=d.get("description", ""), arms=tuple(d["arms"]), best=d["best"],
+                   top=tuple(d.get("top") or ()), provenance=d.get("provenance") or {}, targets=d.get("targets"))
+
+
+def check_metaparams(values, where: str) -> dict:
+    """A complete ``{field: float}`` set inside :data:`BOUNDS` (compared in float32, the type the model uses), or
+    :class:`ConfigError` naming the field and its range."""
+    if not isinstance(values, dict):
+        raise ConfigError(f"{where}: must be an object {{field: value}} with every metaparameter ({', '.join(NAMES)})")
+    unknown = [k for k in values if k not in NAMES]
+    if unknown:
+        raise ConfigError(f"{where}: unknown metaparameter {unknown[0]!r}; known: {', '.join(NAMES)}")
+    missing = [k for k in NAMES if k not in values]
+    if missing:
+        raise ConfigError(f"{where}: missing {', '.join(missing)} (a preset gives every metaparameter)")
+    out = {}
+    for name in NAMES:
+        v, b = values[name], BOUNDS[name]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(f"{where}.{name} = {v!r}: must be a finite number in [{b.lo:g}, {b.hi:g}] {b.unit}")
+        if not np.float32(b.lo) <= np.float32(v) <= np.float32(b.hi):
+            raise ConfigError(f"{where}.{name} = {v!r} is out of range; allowed [{b.lo:g}, {b.hi:g}] {b.unit} "
+                              "(jaxarm.learning.metaparams.BOUNDS)")
+        out[name] = float(v)
+    return out
+
+
+def original() -> Preset:
+    """The built-in preset: the published values, no top list."""
+    return Preset(
+        name=ORIGINAL_NAME,
+        description="the authors' metaparameters (main.hoc, marked 'optimized'); no top-30 list is available",
+        arms=("musculoskeletal", "simple"), best=dict(ORIGINAL), top=(),
+        provenance={"source": "the authors' values from main.hoc, spec §7 (jaxarm.learning.metaparams.ORIGINAL)",
+                    "command": None, "seed": None, "cost": None, "date": None})
+
+
+def _file_presets(directory: Path) -> dict[str, Path]:
+    return {p.stem: p for p in sorted(Path(directory).glob("*.json"))}
+
+
+def available(directory: Path = PRESET_DIR) -> dict[str, str]:
+    """``{name: one-line description}``: ``original`` first, then the preset files by name."""
+    out = {ORIGINAL_NAME: original().description}
+    for name, path in _file_presets(directory).items():
+        try:
+            d = json.loads(path.read_text())
+            desc = d.get("description", "") if isinstance(d, dict) else ""
+        except (OSError, json.JSONDecodeError) as e:
+            desc = f"(unreadable: {e})"
+        out.setdefault(name, desc)
+    return out
+
+
+def load(name_or_path: str | Path, directory: Path = PRESET_DIR) -> Preset:
+    """A preset by name (``original`` or a file in ``directory``) or by the path of a ``.json`` file."""
+    text = str(name_or_path)
+    if text == ORIGINAL_NAME:
+        return original()
+    path = Path(text) if (text.endswith(".json") or "/" in text) else _file_presets(directory).get(text)
+    if path is None or not path.is_file():
+        raise ConfigError(f"unknown preset {text!r}; known: {', '.join(available(directory))} "
+                          "(or give the path of a preset .json file)")
+    try:
+        d = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise ConfigError(f"preset file {path}: not valid JSON ({e})") from None
+    preset = Preset.from_json(d, where=f"preset file {path}")
+    if path.parent.resolve() == Path(directory).resolve() and preset.name != path.stem:
+        raise ConfigError(f"preset file {path} is named {preset.name!r} inside; the file must be {preset.name}.json")
+    return preset
+
+
+def save(preset: Preset, directory: Path = PRESET_DIR, overwrite: bool = False) -> Path:
+    """Write ``directory/NAME.json``; refuses to replace a file unless ``overwrite``."""
+    if preset.name == ORIGINAL_NAME:
+        raise ConfigError(f"preset name {ORIGINAL_NAME!r} is built in; choose another")
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / f"{preset.name}.json"
+    if path.exists() and not overwrite:
+        raise ConfigError(f"{path} exists; choose another name or delete it")
+    path.write_text(json.dumps(preset.to_json(), indent=1) + "\n")
+    return path
+
+
+def _evolve_command(history: dict, top_k: dict, search_dir: Path) -> str:
+    """The ``jaxarm evolve`` command equivalent to the search described in history.json (same fitness, space,
+    strategy and seeds; --eval-batch and --chunk only change memory use and checkpoint spacing)."""
+    c, fit, space = history["config"], history.get("fitness", {}), history.get("space", {})
+    args = ["jaxarm", "evolve", "--fitness", str(fit.get("name", "?"))]
+    if fit.get("arm"):
+        args += ["--arm", fit["arm"]]
+    if fit.get("targets"):
+        args += ["--targets", ",".join(fit["targets"])]
+    if fit.get("train_s") is not None:
+        args += ["--train-s", f"{fit['train_s']:g}"]
+    args += ["--strategy", c["strategy"], "--population", str(c["population_size"]),
+             "--seeds-per-candidate", str(c["seeds_per_candidate"]), "--generations", str(c["generations"]),
+             "--chunk", str(c["chunk_size"]), "--seed", str(c["seed"]), "--sigma", f"{c['sigma_init']:g}",
+             "--top-k", str(c["top_k"]), "--seed-mode", c["seed_mode"], "--seed-reduce", c["seed_reduce"]]
+    if c.get("strategy_params"):
+        args += ["--strategy-param", ",".join(f"{k}={v:g}" for k, v in c["strategy_params"].items())]
+    if c.get("eval_batch_size"):
+        args += ["--eval-batch", str(c["eval_batch_size"])]
+    if space.get("frozen"):
+        args += ["--freeze", ",".join(f"{k}={v:g}" for k, v in space["frozen"].items())]
+    starts = {k: v["start"] for k, v in space.get("searched", {}).items() if v.get("start") != ORIGINAL.get(k)}
+    if starts:
+        args += ["--start", ",".join(f"{k}={v:g}" for k, v in starts.items())]
+    rows = top_k.get("top_k", [])
+    if top_k.get("reevaluated") and rows and "reevaluation" in rows[0]:
+        args += ["--reevaluate-seeds", str(len(rows[0]["reevaluation"].get("fitness_per_seed", [])))]
+    return shlex.join(args + ["--out", str(search_dir)])
+
+
+def from_search(search_dir: str | Path, name: str, description: str | None = None, command: str | None = None,
+                max_top: int = MAX_TOP, arms: tuple[str, ...] | None = None) -> Preset:
+    """A preset from a finished ``jaxarm evolve`` folder: ``best`` = its rank-1 set, ``top`` = its first
+    ``max_top`` sets (ranked as in top_k.json: by the re-evaluation when the search did one). Provenance: the
+    command (``command`` as given, else reconstructed from history.json and marked so), the search seed and
+    configuration, its cost (run and compile seconds, evaluations, network-seconds) and the dates. ``arms``:
+    default the search's fitness arm (needed when history.json does not name one)."""
+    search_dir = Path(search_dir)
+    try:
+        top_k = json.loads((search_dir / "top_k.json").read_text())
+        history = json.loads((search_dir / "history.json").read_text())
+    except FileNotFoundError as e:
+        raise ConfigError(f"--from-search {search_dir}: {e.filename} not found (a `jaxarm evolve --out` folder "
+                          "holds top_k.json and history.json)") from None
+    rows = top_k.get("top_k") or []
+    if not rows:
+        raise ConfigError(f"{search_dir / 'top_k.json'} holds no candidates")
+    config = history.get("config", {})
+    if history.get("generations_done", 0) < config.get("generations", 0):
+        raise ConfigError(f"{search_dir}: the search is unfinished ({history.get('generations_done')} of "
+                          f"{config.get('generations')} generations); run the same `jaxarm evolve` command to finish")
+    if not 1 <= max_top <= MAX_TOP:
+        raise ConfigError(f"max_top = {max_top}: must be in [1, {MAX_TOP}]")
+    fit = top_k.get("fitness") or history.get("fitness", {})
+    arms = tuple(arms) if arms else ((fit["arm"],) if fit.get("arm") else ())
+    if not arms:
+        raise ConfigError(f"{search_dir}: the search does not name its arm; give arms=(...)")
+    top = []
+    for row in rows[:max_top]:
+        entry = {"rank": row.get("rank"), "fitness": row.get("fitness"), "generation": row.get("generation")}
+        if row.get("reevaluation") is not None:
+            entry["reevaluated_fitness"] = row["reevaluation"].get("fitness")
+        entry["metaparams"] = row["metaparams"]
+        top.append(entry)
+    costs = history.get("costs", {})
+    evals = costs.get("evaluations")
+    per_eval = fit.get("network_seconds_per_eval") or 0.0
+    stamp = _dt.datetime.fromtimestamp((search_dir / "top_k.json").stat().st_mtime, _dt.timezone.utc)
+    provenance = {
+        "source": "jaxarm evolve",
+        "command": command if command else _evolve_command(history, top_k, search_dir),
+        "command_reconstructed": not command,
+        "seed": config.get("seed"),
+        "search": {"config": config, "fitness": fit, "space": history.get("space"),
+                   "generations_done": history.get("generations_done"), "reevaluated": bool(top_k.get("reevaluated")),
+                   "folder": str(search_dir)},
+        "cost": {"run_s": costs.get("run_s"), "compile_s": costs.get("compile_s"), "evaluations": evals,
+                 "network_seconds": evals * per_eval if evals is not None and per_eval else None,
+                 "network_seconds_per_s": costs.get("network_seconds_per_s"),
+                 "note": "the search only; a re-evaluation of the top-k (if any) is not included"},
+        "search_finished": stamp.isoformat(timespec="seconds"),
+        "date": _dt.datetime.now(_dt.timezone.utc).date().isoformat(),
+    }
+    if description is None:
+        description = (f"best of a {config.get('strategy', '?')} search ({history.get('generations_done')} "
+                       f"generations x {config.get('population_size')} candidates, fitness {fit.get('name', '?')}"
+                       f"{', ' + ','.join(fit['targets']) if fit.get('targets') else ''}) on the {'/'.join(arms)} arm")
+    return Preset(name=name, description=description, arms=arms,
+                  best=rows[0]["metaparams"], top=tuple(top), provenance=provenance,
+                  targets=tuple(fit["targets"]) if fit.get("targets") else None)

@@ -1,0 +1,288 @@
+"""``jaxarm reproduce``: the paper's success statistic (trained networks reaching the target), two ways.
+
+    jaxarm reproduce --arm musculoskeletal --preset NAME --out runs/repro-msarm
+    jaxarm reproduce --list-presets
+    jaxarm reproduce --make-preset NAME --from-search runs/evolve-msarm     # a preset from a finished search
+
+(a) ``seeds``: the preset's best metaparameter set, trained with ``--networks`` (30) seeds per target: how reliable
+    one configuration is.
+(b) ``top30``: the preset's top configurations (up to 30, ranked), one network each (set i with seed i): what the
+    paper counted ("the 30 best metaparameter configurations of the evolutionary search"). A preset without a top
+    list (e.g. ``original``) reports (b) as null, with the reason.
+
+Network i uses the key ``PRNGKey(seed + i)`` in both. The protocol is ``jaxarm train``'s: ``epochs`` of 30 s
+(default: the preset's ``epochs`` metaparameter, 12), a 1 s test, success = the hand enters the 4 cm circle. Each
+(target, mode) is an ordinary ``jaxarm train`` output folder (``OUT/TARGET/seeds``, ``OUT/TARGET/top30``: results.json,
+trajectories.npz, reach.png, per-epoch checkpoints): running the same command again resumes a killed reproduction
+from its last completed epoch, and reuses folders that are finished.
+
+``OUT/success_table.json``: ``targets[T]`` = {seeds, seeds_n, top30, top30_n, top30_note, naive counts, median
+closest/final distance of each mode, the paper's count}, plus arm, preset (and its provenance), command, seed,
+protocol, timing (wall s, network-seconds per s) and the paper's numbers. The same table is printed.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from jaxarm.config.validate import ConfigError
+from jaxarm.evolve import presets as preset_lib
+
+#: Trained networks reaching the target in the paper (§3.2; spec reference_values.md), out of PAPER_N: its 30 best
+#: metaparameter configurations of the search, one network each (our mode (b)).
+PAPER_SUCCESS: dict[str, dict[str, int]] = {"musculoskeletal": {"left": 29, "bottom": 26},
+                                            "simple": {"left": 28, "bottom": 27}}
+PAPER_N = 30
+PAPER_SOURCE = "Dura-Bernal et al. 2015, §3.2: trained networks whose hand entered the 4 cm circle in the 1 s test"
+TABLE_FILE = "success_table.json"
+MODES = ("seeds", "top30")
+
+
+def _median_of(results: dict, key: str):
+    vals = [n[key] for n in results["networks"] if n.get(key) is not None]
+    return round(float(np.median(vals)), 5) if vals else None
+
+
+def _finished(run) -> dict | None:
+    """The folder's results.json when it holds this exact run, finished (same loop config and meta)."""
+    path = run.out / "results.json"
+    if not path.is_file():
+        return None
+    from dataclasses import asdict
+
+    from jaxarm.experiment import _jsonable
+
+    res = json.loads(path.read_text())
+    want = json.loads(json.dumps({"loop": _jsonable(asdict(run.config)), **run.meta()}))
+    return res if res.get("config") == want else None
+
+
+def _run_one(run, progress: bool, stop_after: int | None, log):
+    """Train (resuming), test and write one folder; reuse it when finished. Returns (results, timing) or None when
+    ``stop_after`` stopped training early (as a kill would). The timing is the folder's results.json's: the
+    training of the invocation that finished it (epochs_run of them)."""
+    from jaxarm.experiment import write_outputs
+
+    res = _finished(run)
+    reused = res is not None
+    if reused:
+        log(f"  {run.out}: finished earlier, reused")
+    else:
+        carry, history, wall, epochs_run, compile_s = run.train(progress=progress, stop_after=stop_after)
+        if int(np.asarray(carry.epoch)[0]) < run.config.task.epochs:
+            return None
+        res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, wall, epochs_run,
+                            compile_s)
+    t = res["timing"]
+    return res, {"reused": reused, "train_wall_s": t["train_wall_s_this_invocation"],
+                 "epochs_run": t["epochs_run_this_invocation"], "compile_s": t["compile_s"],
+                 "network_s": t["epochs_run_this_invocation"] * run.config.task.epoch_duration_s * run.n}
+
+
+def _epochs_of(sets, what: str) -> int:
+    values = sorted({int(round(float(m.epochs))) for m in sets})
+    if len(values) != 1:
+        raise ConfigError(f"{what}: the sets train for different numbers of epochs ({values}); the sets of one run "
+                          "share a compiled loop, so give --epochs")
+    return values[0]
+
+
+def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networks: int = 30, seed: int = 0,
+              epochs: int | None = None, epoch_s: float = 30.0, test_s: float = 1.0, top: int = preset_lib.MAX_TOP,
+              backend: str = "fast", progress: bool = True, command: str | None = None,
+              stop_after: int | None = None, log=print) -> dict | None:
+    """Run (or resume) modes (a) and (b) for every target; write and return the success table. ``stop_after``:
+    stop the first unfinished folder after that many epochs of this call and return None (tests use it to
+    interrupt a run)."""
+    from jaxarm.experiment import Run, SetsRun
+    from jaxarm.learning.metaparams import stack
+    from jaxarm.loop import LoopConfig
+    from jaxarm.task.config import TaskConfig
+
+    if not 1 <= networks <= 4096:
+        raise ConfigError(f"--networks = {networks}: must be in [1, 4096]")
+    if not 1 <= top <= preset_lib.MAX_TOP:
+        raise ConfigError(f"--top = {top}: must be in [1, {preset_lib.MAX_TOP}]")
+    if seed < 0:
+        raise ConfigError(f"--seed = {seed}: must be >= 0")
+    if epochs is not None and not 1 <= epochs <= 1000:
+        raise ConfigError(f"--epochs = {epochs}: must be in [1, 1000]")
+    targets = list(targets)
+    if not targets or len(set(targets)) != len(targets):
+        raise ConfigError(f"--targets = {','.join(targets)!r}: give one or more distinct targets")
+    best = preset.best_metaparams()
+    top_sets = preset.top_metaparams(top)
+    epochs_a = epochs if epochs is not None else _epochs_of([best], f"preset {preset.name!r} best")
+    epochs_b = (epochs if epochs is not None else _epochs_of(top_sets, f"preset {preset.name!r} top")) if top_sets \
+        else None
+    if arm not in preset.arms:
+        log(f"note: preset {preset.name!r} was tuned for the {'/'.join(preset.arms)} arm; running it on the {arm} arm")
+    no_top = None if top_sets else (f"preset {preset.name!r} has no top list (only its best set is known)")
+
+    def config(target, n_epochs):
+        return LoopConfig(arm=arm, backend=backend, task=TaskConfig(
+            target=target, epochs=n_epochs, epoch_duration_s=epoch_s, test_duration_s=test_s))
+
+    configs = {t: (config(t, epochs_a), config(t, epochs_b) if top_sets else None) for t in targets}  # validate all
+    out = Path(out)
+    t_start = time.perf_counter()
+    rows, timing_rows = {}, {}
+    for target in targets:
+        cfg_a, cfg_b = configs[target]
+        runs = {"seeds": Run(cfg_a, networks, seed, out / target / "seeds", best)}
+        if top_sets:
+            runs["top30"] = SetsRun(cfg_b, seed, out / target / "top30", stack(top_sets))
+        res = {}
+        for mode, run in runs.items():
+            log(f"{arm} arm, {target} target, ({'a' if mode == 'seeds' else 'b'}) {mode}: {run.n} networks, "
+                f"{run.config.task.epochs} x {epoch_s:g} s -> {run.out}")
+            got = _run_one(run, progress, stop_after, log)
+            if got is None:
+                log(f"stopped after {stop_after} epoch(s) of {run.out}; run the same command again to resume")
+                return None
+            res[mode], timing_rows[f"{target}/{mode}"] = got
+        a, b = res["seeds"], res.get("top30")
+        paper = PAPER_SUCCESS.get(arm, {}).get(target)
+        rows[target] = {
+            "seeds": a["success_count"], "seeds_n": a["n_networks"],
+            "top30": None if b is None else b["success_count"], "top30_n": 0 if b is None else b["n_networks"],
+            "top30_note": no_top if b is None else (None if b["n_networks"] == PAPER_N else
+                                                     f"the preset's top list gives {b['n_networks']} sets, not 30"),
+            "seeds_naive": a["naive"]["success_count"],
+            "top30_naive": None if b is None else b["naive"]["success_count"],
+            "seeds_median_min_distance_m": _median_of(a, "min_distance_m"),
+            "seeds_median_final_distance_m": _median_of(a, "final_distance_m"),
+            "top30_median_min_distance_m": None if b is None else _median_of(b, "min_distance_m"),
+            "top30_median_final_distance_m": None if b is None else _median_of(b, "final_distance_m"),
+            "paper": paper, "paper_n": PAPER_N if paper is not None else None,
+            "folders": {m: str(Path(target) / m) for m in res},
+        }
+    wall = time.perf_counter() - t_start
+    train_wall = sum(t["train_wall_s"] for t in timing_rows.values())
+    net_s = sum(t["network_s"] for t in timing_rows.values())
+    import jax
+
+    table = {
+        "arm": arm, "backend": backend, "preset": preset.name, "preset_description": preset.description,
+        "preset_arms": list(preset.arms), "preset_provenance": preset.provenance,
+        "command": command, "seed": seed,
+        "protocol": {"networks_seeds": networks, "top_sets": len(top_sets), "epochs_seeds": epochs_a,
+                     "epochs_top30": epochs_b, "epoch_s": epoch_s, "test_s": test_s,
+                     "success_radius_m": configs[targets[0]][0].task.success_radius_m,
+                     "keys": "network i uses PRNGKey(seed + i); in top30, network i trains with the preset's set i"},
+        "targets": rows,
+        "paper": {"source": PAPER_SOURCE, "n": PAPER_N, "success": PAPER_SUCCESS.get(arm),
+                  "statistic": "the 30 best configurations of the search, one network each: our top30"},
+        "timing": {"wall_s_this_invocation": round(wall, 2), "train_wall_s": round(train_wall, 2),
+                   "network_seconds_trained": net_s,
+                   "network_s_per_s": round(net_s / train_wall, 3) if train_wall > 0 else None,
+                   "note": "wall_s_this_invocation includes compilation, tests and writing (a rerun that reuses "
+                           "finished folders is short); train_wall_s and network_seconds_trained add up each "
+                           "folder's results.json timing (the training of the invocation that finished it)",
+                   "device": jax.default_backend(), "folders": timing_rows},
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    (out / TABLE_FILE).write_text(json.dumps(table, indent=1) + "\n")
+    log(format_table(table))
+    log(f"-> {out / TABLE_FILE}")
+    return table
+
+
+def format_table(table: dict) -> str:
+    """The success table as text: ours (a) and (b) beside the paper's."""
+    p = table["protocol"]
+    head = (f"jaxarm reproduce: {table['arm']} arm, preset {table['preset']!r}, seed {table['seed']}, "
+            f"{p['epochs_seeds']} epochs x {p['epoch_s']:g} s, {p['test_s']:g} s test, "
+            f"success = within {p['success_radius_m'] * 100:g} cm")
+    cols = ("target", "(a) best set, N seeds", "(b) top sets, 1 each", "paper (30 best configs)", "naive (a)",
+            "median closest (a)/(b)")
+    lines = []
+    for target, r in table["targets"].items():
+        b = "n/a" if r["top30"] is None else f"{r['top30']}/{r['top30_n']}"
+        cm = lambda v: "-" if v is None else f"{v * 100:.1f} cm"  # noqa: E731
+        lines.append((target, f"{r['seeds']}/{r['seeds_n']}", b,
+                      "-" if r["paper"] is None else f"{r['paper']}/{r['paper_n']}",
+                      f"{r['seeds_naive']}/{r['seeds_n']}",
+                      f"{cm(r['seeds_median_min_distance_m'])} / {cm(r['top30_median_min_distance_m'])}"))
+    widths = [max(len(c), *(len(row[i]) for row in lines)) for i, c in enumerate(cols)]
+    fmt = lambda row: "  ".join(s.ljust(w) for s, w in zip(row, widths)).rstrip()  # noqa: E731
+    out = [head, fmt(cols), fmt(["-" * w for w in widths])] + [fmt(row) for row in lines]
+    notes = sorted({r["top30_note"] for r in table["targets"].values() if r["top30_note"]})
+    out += [f"(b): {n}" for n in notes]
+    t = table["timing"]
+    rate = "" if t["network_s_per_s"] is None else (f"; training {t['train_wall_s']:.1f} s for "
+                                                    f"{t['network_seconds_trained']:g} network-s, "
+                                                    f"{t['network_s_per_s']:.2f} network-s/s")
+    out.append(f"wall {t['wall_s_this_invocation']:.1f} s this invocation{rate} ({t['device']})")
+    return "\n".join(out)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="jaxarm reproduce", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), help="arm (required for a reproduction)")
+    ap.add_argument("--preset", help="preset name (see --list-presets) or the path of a preset .json file")
+    ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
+    ap.add_argument("--targets", default="left,bottom", help="comma-separated targets (default left,bottom)")
+    ap.add_argument("--networks", type=int, default=30, help="(a): seeds of the best set per target (default 30)")
+    ap.add_argument("--top", type=int, default=preset_lib.MAX_TOP,
+                    help="(b): at most this many of the preset's top sets (default 30)")
+    ap.add_argument("--seed", type=int, default=0, help="network i uses PRNGKey(seed + i) (default 0)")
+    ap.add_argument("--epochs", type=int, default=None,
+                    help="training epochs (default: the preset's `epochs` metaparameter, 12); fewer for a quick run")
+    ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
+    ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
+    ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
+    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--list-presets", action="store_true", help="list the presets, one per line, name first; exit")
+    g = ap.add_argument_group("making a preset from a finished `jaxarm evolve` folder")
+    g.add_argument("--make-preset", metavar="NAME", help="write a preset NAME.json from --from-search and exit")
+    g.add_argument("--from-search", type=Path, metavar="DIR", help="a `jaxarm evolve --out` folder")
+    g.add_argument("--description", help="the preset's one-line description (default: from the search)")
+    g.add_argument("--search-command", help="the exact `jaxarm evolve ...` command of the search (default: "
+                                            "reconstructed from its history.json)")
+    g.add_argument("--preset-dir", type=Path, default=preset_lib.PRESET_DIR,
+                   help=f"where presets are read and written (default: the package's, {preset_lib.PRESET_DIR})")
+    return ap
+
+
+def reproduce_main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    try:
+        if args.list_presets:
+            for name, desc in preset_lib.available(args.preset_dir).items():
+                print(f"{name}  {desc}")
+            return 0
+        if args.make_preset:
+            if args.from_search is None:
+                ap.error("--make-preset needs --from-search DIR")
+            p = preset_lib.from_search(args.from_search, args.make_preset, description=args.description,
+                                       command=args.search_command)
+            path = preset_lib.save(p, args.preset_dir)
+            print(f"preset {p.name!r}: best set + {len(p.top)} top sets from {args.from_search} -> {path}")
+            return 0
+        missing = [o for o, v in (("--arm", args.arm), ("--preset", args.preset), ("--out", args.out)) if v is None]
+        if missing:
+            ap.error(f"{', '.join(missing)} required (or --list-presets / --make-preset)")
+        preset = preset_lib.load(args.preset, args.preset_dir)
+        targets = [t.strip() for t in args.targets.split(",") if t.strip()]
+        table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
+                          epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
+                          backend=args.backend, progress=not args.no_progress,
+                          command=shlex.join(["jaxarm", "reproduce", *argv]))
+    except ConfigError as e:
+        print(f"jaxarm reproduce: {e}", file=sys.stderr)
+        return 2
+    return 0 if table is not None else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(reproduce_main())

@@ -1,0 +1,135 @@
+"""`jaxarm reproduce` and the metaparameter presets.
+
+Kept fast the way test_closed_loop.py keeps `jaxarm train` fast: the simple arm, 2 networks, one target, 2 epochs
+of 0.2 s and a 0.2 s test. Every run below uses that one loop configuration, so the compiled functions are shared.
+"""
+import json
+import shlex
+
+import pytest
+
+from jaxarm.cli import main
+from jaxarm.config.validate import ConfigError
+from jaxarm.evolve import presets
+from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams
+
+TINY = ["--arm", "simple", "--targets", "left", "--networks", "2", "--epochs", "2", "--epoch-s", "0.2",
+        "--test-s", "0.2", "--no-progress"]
+TABLE_KEYS = {"seeds", "seeds_n", "top30", "top30_n", "top30_note", "seeds_median_min_distance_m",
+              "seeds_median_final_distance_m", "top30_median_min_distance_m", "paper", "paper_n"}
+
+
+@pytest.fixture(scope="module")
+def search(tmp_path_factory):
+    """A finished (tiny) search: `jaxarm evolve --fitness quadratic`, the real top_k.json/history.json format."""
+    out = tmp_path_factory.mktemp("search")
+    assert main(["evolve", "--fitness", "quadratic", "--strategy", "SimpleGA", "--population", "4",
+                 "--generations", "1", "--chunk", "1", "--top-k", "3", "--arm", "simple", "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def preset_dir(search, tmp_path_factory):
+    d = tmp_path_factory.mktemp("presets")
+    assert main(["reproduce", "--make-preset", "quad", "--from-search", str(search), "--preset-dir", str(d)]) == 0
+    return d
+
+
+def test_list_presets_original_first(capsys, preset_dir):
+    assert main(["reproduce", "--list-presets", "--preset-dir", str(preset_dir)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split()[0] == "original"
+    assert [ln.split()[0] for ln in lines] == ["original", "quad"]
+
+
+def test_original_preset_is_the_published_values():
+    p = presets.load("original")
+    assert p.best == ORIGINAL and p.top == ()
+    assert p.best_metaparams().to_dict() == MetaParams.original().to_dict()
+    assert "main.hoc" in p.provenance["source"]
+
+
+def test_unknown_preset_is_a_clear_error(capsys, tmp_path):
+    with pytest.raises(ConfigError, match="unknown preset 'nope'; known: original"):
+        presets.load("nope", tmp_path)
+    assert main(["reproduce", "--preset", "nope", "--out", str(tmp_path / "o"), "--preset-dir", str(tmp_path),
+                 *TINY]) == 2
+    assert "unknown preset 'nope'; known: original" in capsys.readouterr().err
+
+
+def test_preset_validation_names_field_and_range():
+    with pytest.raises(ConfigError, match=r"best.learn_rate = 0.5 is out of range; allowed \[0.001, 0.2\]"):
+        presets.Preset(name="x", description="", arms=("simple",), best={**ORIGINAL, "learn_rate": 0.5})
+    with pytest.raises(ConfigError, match="missing epochs"):
+        presets.Preset(name="x", description="", arms=("simple",), best={k: ORIGINAL[k] for k in NAMES[:-1]})
+    with pytest.raises(ConfigError, match=r"top\[1\].v_em_max"):
+        presets.Preset(name="x", description="", arms=("simple",), best=ORIGINAL,
+                       top=({"metaparams": ORIGINAL}, {"metaparams": {**ORIGINAL, "v_em_max": 5.0}}))
+    with pytest.raises(ConfigError, match="at most 30"):
+        presets.Preset(name="x", description="", arms=("simple",), best=ORIGINAL, top=({"metaparams": ORIGINAL},) * 31)
+    with pytest.raises(ConfigError, match="arms"):
+        presets.Preset(name="x", description="", arms=("robot",), best=ORIGINAL)
+    with pytest.raises(ConfigError, match="built in"):
+        presets.save(presets.original())
+    # the bounds themselves are allowed (a search clips to them)
+    presets.Preset(name="edge", description="", arms=("simple",), best={n: BOUNDS[n].hi for n in NAMES})
+
+
+def test_preset_round_trip_from_search(search, preset_dir):
+    top_k = json.loads((search / "top_k.json").read_text())["top_k"]
+    p = presets.load("quad", preset_dir)
+    assert p.best == top_k[0]["metaparams"]
+    assert [r["metaparams"] for r in p.top] == [r["metaparams"] for r in top_k]
+    assert [r["rank"] for r in p.top] == [1, 2, 3] and p.arms == ("simple",)
+    assert presets.load(str(preset_dir / "quad.json")).to_json() == p.to_json()
+    prov = p.provenance
+    assert prov["seed"] == 0 and prov["command_reconstructed"] and prov["cost"]["evaluations"] == 4
+    assert prov["date"] and prov["search_finished"]
+    # the reconstructed command is a valid `jaxarm evolve` command for the same search
+    from jaxarm.evolve.cli import build_parser
+
+    args = build_parser().parse_args(shlex.split(prov["command"])[2:])
+    assert (args.fitness, args.strategy, args.population, args.generations, args.seed, args.top_k, args.arm) == \
+        ("quadratic", "SimpleGA", 4, 1, 0, 3, "simple")
+    with pytest.raises(ConfigError, match="exists"):
+        presets.save(p, preset_dir)
+
+
+def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
+    from jaxarm.evolve.reproduce import reproduce
+
+    out = tmp_path / "repro"
+    p = presets.load("quad", preset_dir)
+    kw = dict(networks=2, epochs=2, epoch_s=0.2, test_s=0.2, top=2, progress=False, log=lambda _: None)
+    assert reproduce(p, "simple", ["left"], out, stop_after=1, **kw) is None   # "killed" after one epoch
+    assert not (out / "success_table.json").exists()
+    assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--top", "2", "--out", str(out),
+                 *TINY]) == 0
+    table = json.loads((out / "success_table.json").read_text())
+    row = table["targets"]["left"]
+    assert TABLE_KEYS <= set(row)
+    assert (row["seeds_n"], row["top30_n"], row["paper"], row["paper_n"]) == (2, 2, 28, 30)
+    assert 0 <= row["seeds"] <= 2 and 0 <= row["top30"] <= 2
+    assert {"arm", "preset", "command", "seed", "timing", "paper"} <= set(table)
+    assert table["command"].startswith("jaxarm reproduce --preset quad")
+    folders = table["timing"]["folders"]
+    assert folders["left/seeds"]["epochs_run"] == 1      # resumed: only the second epoch ran
+    assert folders["left/top30"]["epochs_run"] == 2
+    # (b) trains network i with set i: the folder records the sets, and `jaxarm test` re-tests it identically
+    top30 = json.loads((out / "left" / "top30" / "results.json").read_text())
+    assert top30["config"]["metaparams"] == [r["metaparams"] for r in p.top[:2]]
+    assert main(["test", "--from", str(out / "left" / "top30"), "--test-s", "0.2"]) == 0
+    again = json.loads((out / "left" / "top30" / "test" / "results.json").read_text())
+    assert again["networks"] == top30["networks"]
+
+
+def test_original_preset_reports_top30_null(tmp_path, capsys):
+    out = tmp_path / "orig"
+    assert main(["reproduce", "--preset", "original", "--out", str(out), *TINY]) == 0
+    row = json.loads((out / "success_table.json").read_text())["targets"]["left"]
+    assert row["top30"] is None and row["top30_n"] == 0 and "no top list" in row["top30_note"]
+    text = capsys.readouterr().out
+    assert "n/a" in text and "no top list" in text and "28/30" in text
+    # a rerun reuses the finished folder
+    assert main(["reproduce", "--preset", "original", "--out", str(out), *TINY]) == 0
+    assert "reused" in capsys.readouterr().out
