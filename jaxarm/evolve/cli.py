@@ -112,8 +112,10 @@ def evolve_main(argv: list[str] | None = None) -> int:
         search = [s.strip() for s in args.search.split(",") if s.strip()] or None
         ignored = [n for n in fitness.ignores if n not in freeze and (search is None or n in search)]
         if ignored:
-            print(f"jaxarm evolve: {args.fitness} does not use {', '.join(ignored)}: frozen at the published value")
-            freeze.update({n: ORIGINAL[n] for n in ignored})
+            implied = dict(fitness.implied)
+            print(f"jaxarm evolve: {args.fitness} does not use {', '.join(ignored)}: frozen at "
+                  + ", ".join(f"{n}={implied.get(n, ORIGINAL[n])}" for n in ignored))
+            freeze.update({n: implied.get(n, ORIGINAL[n]) for n in ignored})
             search = None if search is None else [n for n in search if n not in ignored]
             if search == []:
                 raise ConfigError(f"--search: {args.fitness} uses none of the fields given")

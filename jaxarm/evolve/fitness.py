@@ -84,12 +84,15 @@ class Fitness(NamedTuple):
     ``network_seconds_per_eval``: simulated network-seconds one call of ``fn`` runs (0 for a benchmark); the progress
     line multiplies it by evaluations per second.
     ``ignores``: metaparameters ``fn`` does not read (e.g. ``epochs`` when the training length is static); ``jaxarm
-    evolve`` freezes them rather than search directions that cannot matter.
+    evolve`` freezes them rather than search directions that cannot matter, at the value in ``implied`` when there
+    is one (what ``fn`` effectively uses, e.g. ``epochs`` = the static number of training epochs, so the found sets
+    record how they were evaluated), else at the published value.
     """
 
     fn: Callable
     network_seconds_per_eval: float = 0.0
     ignores: tuple = ()
+    implied: tuple = ()     # ((name, value), ...) of ignored fields
 
 
 class _Entry(NamedTuple):

@@ -43,8 +43,9 @@ def make_reaching(options: fitness.FitnessOptions) -> fitness.Fitness:
         return jnp.max(jnp.stack(dist)), {"success_rate": jnp.mean(jnp.stack(success).astype(jnp.float32))}
 
     test_s = fns[0].loop.config.task.test_duration_s
+    epochs = fns[0].loop.config.task.epochs
     return fitness.Fitness(fn, network_seconds_per_eval=len(options.targets) * (train_s + test_s),
-                           ignores=("epochs",))
+                           ignores=("epochs",), implied=(("epochs", float(epochs)),))
 
 
 fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (spec §7)")
