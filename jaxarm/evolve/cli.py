@@ -110,7 +110,7 @@ def evolve_main(argv: list[str] | None = None) -> int:
             train_s=args.train_s)
         fitness = fitness_registry.build(args.fitness, options)
         search = [s.strip() for s in args.search.split(",") if s.strip()] or None
-        ignored = [n for n in fitness.ignores if n not in freeze and (search is None or n in search)]
+        ignored = [n for n in fitness.ignores if n not in freeze]   # searched or frozen by default alike
         if ignored:
             implied = dict(fitness.implied)
             print(f"jaxarm evolve: {args.fitness} does not use {', '.join(ignored)}: frozen at "
