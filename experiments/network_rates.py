@@ -9,6 +9,7 @@ IM 1.3, IML 0.8 Hz.
     python experiments/network_rates.py --json                  # 8 networks x 10 s, default dt
     python experiments/network_rates.py --networks 1 --seconds 10 --dt 0.1
     python experiments/network_rates.py --compare-dt 0.1,0.25,0.5,1 --seconds 20 --json   # choosing the default dt
+    python experiments/network_rates.py --seconds 30 --window-s 5     # how the rates settle after the start
 
 ``--compare-dt``: the same networks (wiring and noise keys) at each dt; every dt is compared with the first
 (the reference) by per-population rate and spike count. The default dt is the largest one whose every population
@@ -37,6 +38,9 @@ from jaxarm.network.populations import POPULATIONS
 
 #: Rates of the original over the first 10 s of training, Hz (spec §10, spkstats2).
 ORIGINAL_RATES_HZ = {"ES": 3.9, "IS": 2.4, "ISL": 1.7, "EM": 1.0, "IM": 1.3, "IML": 0.8}
+#: The original's rates over the last 10 s of training epoch 1 (t = 20-30 s; spec §10 table, first row), Hz. The
+#: original had plasticity on (its gains moved 0-5 % by then); ours here has none.
+ORIGINAL_EPOCH1_LAST10S_HZ = {"ES": 3.46, "IS": 2.07, "ISL": 1.65, "EM": 0.78, "IM": 0.80, "IML": 0.68}
 #: The original's critic period on the 10 ms loop (rlDT = 55.55 ms -> every 60 ms).
 RL_PERIOD_MS = 60.0
 
@@ -129,6 +133,31 @@ def measure_rates(config: NetworkConfig, n_networks: int, seconds: float, seed: 
     }
 
 
+def measure_windows(config: NetworkConfig, n_networks: int, seconds: float, window_s: float, seed: int):
+    """Rates in consecutive windows of ``window_s`` under the training drive (one continuing run): how the rates
+    settle after the start. Returns per-window mean rates (Hz) per population, P included."""
+    net = Network(config)
+    keys = jax.random.split(jax.random.key(seed), 2 * n_networks)
+    wirings = jax.vmap(net.make_wiring)(keys[:n_networks])
+    first = jax.jit(jax.vmap(make_training_drive(net, window_s)))
+    more = jax.jit(jax.vmap(make_training_drive(net, window_s, from_state=True)))
+    n_windows = max(1, int(round(seconds / window_s)))
+    windows, prev, state = [], None, None
+    for w in range(n_windows):
+        state, _ = first(wirings, keys[n_networks:]) if w == 0 else more(wirings, keys[n_networks:], state)
+        counts = np.asarray(state.net.spike_count)
+        diff = counts if prev is None else counts - prev
+        prev = counts
+        rates = {p: float(diff[:, net.pops.slice(p)].sum() / (n_networks * config.size(p) * window_s))
+                 for p in POPULATIONS}
+        windows.append({"start_s": w * window_s, "end_s": (w + 1) * window_s, "rates_hz": rates})
+    return {"windows": windows, "original_first_10s_hz": ORIGINAL_RATES_HZ,
+            "original_epoch1_last_10s_hz": ORIGINAL_EPOCH1_LAST10S_HZ,
+            "config": {"dt_ms": config.dt_ms, "networks": n_networks, "seconds": n_windows * window_s,
+                       "window_s": window_s, "seed": seed},
+            "lost_spikes": int(np.asarray(state.net.counters.lost_spikes).sum())}
+
+
 def compare_dt(dts, n_networks: int, seconds: float, seed: int):
     """Rates at each dt for the same networks; relative difference of each population from the first dt."""
     runs = {dt: measure_rates(NetworkConfig(dt_ms=dt), n_networks, seconds, seed) for dt in dts}
@@ -158,7 +187,23 @@ def main(argv=None) -> int:
     ap.add_argument("--json", action="store_true", help="print the result as JSON")
     ap.add_argument("--compare-dt", default=None, metavar="DT,DT,...",
                     help="compare rates across time steps (the first is the reference), e.g. 0.1,0.25,0.5,1")
+    ap.add_argument("--window-s", type=float, default=None,
+                    help="report rates in consecutive windows of this many seconds (e.g. --seconds 30 --window-s 5)")
     args = ap.parse_args(argv)
+    if args.window_s:
+        config = NetworkConfig() if args.dt is None else NetworkConfig(dt_ms=args.dt)
+        result = measure_windows(config, args.networks, args.seconds, args.window_s, args.seed)
+        if args.json:
+            print(json.dumps(result, indent=1))
+            return 0
+        print(f"{args.networks} networks, dt = {config.dt_ms} ms, seed {args.seed}; rates (Hz) per window")
+        print(f"{'window s':>10} " + " ".join(f"{p:>6}" for p in POPULATIONS))
+        for w in result["windows"]:
+            print(f"{w['start_s']:4g}-{w['end_s']:<5g} " + " ".join(f"{w['rates_hz'][p]:6.2f}" for p in POPULATIONS))
+        print(f"{'orig 0-10':>10} " + " ".join(f"{ORIGINAL_RATES_HZ[p]:6.2f}" for p in ORIGINAL_RATES_HZ))
+        print(f"{'orig 20-30':>10} " + " ".join(f"{ORIGINAL_EPOCH1_LAST10S_HZ[p]:6.2f}" for p in ORIGINAL_RATES_HZ)
+              + "   (training epoch 1, plasticity on)")
+        return 0
     if args.compare_dt:
         dts = [float(x) for x in args.compare_dt.split(",")]
         result = compare_dt(dts, args.networks, args.seconds, args.seed)

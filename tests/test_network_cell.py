@@ -110,3 +110,49 @@ def test_refractory_periods_in_steps():
         pops = Populations(NetworkConfig(dt_ms=dt))
         got = tuple(int(const.n_refractory[pops.start[p]]) for p in ("ES", "IS", "ISL"))
         assert got == expected
+
+
+@pytest.mark.parametrize("pop, cell_type", [("ES", "E"), ("IM", "FS")])
+def test_sequential_summation_one_event_per_step_equals_intf6(pop, cell_type):
+    """With loads instead of weights (event_summation="sequential"), one event per step still gives INTF6 exactly."""
+    config = NetworkConfig(dt_ms=0.5)
+    const = _one_cell_constants(config, Populations(config).start[pop])
+    rng = np.random.default_rng(3)
+    n = 600
+    kinds = rng.choice(["E", "FS", "LTS"], size=n, p=[0.7, 0.15, 0.15])
+    weights = np.where(kinds == "E", rng.uniform(0.5, 4.5, n), rng.uniform(0.5, 3.0, n))
+    events = [((k + 1) * 0.5, kinds[k], float(weights[k])) for k in range(n)]
+    ampa = np.where(kinds == "E", weights, 0.0)
+    loads = np.stack([C.event_load(ampa, 65.0), 0.1 * ampa, C.event_load(np.where(kinds == "FS", weights, 0.0), 15.0),
+                      C.event_load(np.where(kinds == "LTS", weights, 0.0), 15.0)], axis=1).astype(np.float32)
+
+    @jax.jit
+    def simulate(inputs):
+        def body(s, x):
+            s, spiked = C.cell_step(s, x[0:1], x[1:2], x[2:3], x[3:4], const, sequential=True)
+            return s, (spiked[0], C.membrane_potential(s, const)[0])
+        return jax.lax.scan(body, C.init_cells(1), jnp.asarray(loads))[1]
+
+    spiked, vm = (np.asarray(a) for a in simulate(loads))
+    ref_spikes, trace = reference_intf6(events, C.CELL_PARAMS[cell_type], 0.5)
+    assert len(ref_spikes) >= 3
+    np.testing.assert_allclose([(k + 1) * 0.5 for k in np.flatnonzero(spiked)], ref_spikes, atol=1e-6)
+    np.testing.assert_allclose(vm, [v for _, v, _ in trace], atol=5e-3)
+
+
+def test_sequential_summation_of_a_volley_equals_one_by_one_jumps():
+    """22 AMPA events of 4 mV in one step (the P volley onto an ES cell): the original's one-by-one jumps leave
+    65 (1 - (1 - 4/65)^22) = 48.9 mV; the linear form gives 88 mV. Same for GABA toward -15 mV."""
+    config = NetworkConfig(dt_ms=0.5)
+    const = _one_cell_constants(config, 0)
+    zero = jnp.zeros(1)
+    one_by_one = 65.0 * (1.0 - (1.0 - 4.0 / 65.0) ** 22)
+    load = jnp.asarray([22 * float(C.event_load(np.float32(4.0), 65.0))], jnp.float32)
+    s, _ = C.cell_step(C.init_cells(1), load, zero, zero, zero, const, sequential=True)
+    assert float(s.ampa[0]) == pytest.approx(one_by_one * math.exp(0.0), rel=1e-5)
+    s_lin, _ = C.cell_step(C.init_cells(1), jnp.asarray([88.0]), zero, zero, zero, const)
+    assert float(s_lin.ampa[0]) == pytest.approx(88.0)
+    # GABA: three 9 mV events from rest: V -> -15 + 15 (1 - 9/15)^3 ... i.e. -15 (1 - 0.4^3)
+    g = jnp.asarray([3 * float(C.event_load(np.float32(9.0), 15.0))], jnp.float32)
+    s, _ = C.cell_step(C.init_cells(1), zero, zero, g, zero, const, sequential=True)
+    assert float(s.gaba_prox[0]) == pytest.approx(-15.0 * (1.0 - 0.4 ** 3), rel=1e-5)

@@ -119,15 +119,32 @@ def init_cells(n: int) -> CellState:
                      steps_since_spike=jnp.full((n,), _SINCE_MAX, jnp.int32))
 
 
+#: Largest w/E a jump may have in the sequential summation (a weight at or beyond the reversal distance saturates).
+MAX_JUMP_FRACTION = 1.0 - 1e-6
+
+
+def event_load(w, e_rev: float):
+    """Load of synaptic weight(s) ``w`` (mV) on a channel with reversal distance ``e_rev`` (65 for AMPA, 15 for
+    GABA), for the sequential summation of events arriving in one step: ``-e_rev * log(1 - w/e_rev)``. Loads add;
+    a step's summed load L gives the jump ``(e_rev -+ V) (1 - exp(-L / e_rev))``, which for one event is exactly
+    ``w (1 -+ V/e_rev)`` and for several is what the original's one-event-at-a-time jumps give (each event moves V
+    toward the reversal by the fraction w/e_rev of the remaining distance). Works on numpy and jax arrays."""
+    xp = jnp if isinstance(w, jnp.ndarray) else np
+    return -e_rev * xp.log1p(-xp.minimum(xp.asarray(w, xp.float32) / e_rev, MAX_JUMP_FRACTION))
+
+
 def mg_block(v_abs):
     """NMDA Mg-block factor of the absolute membrane potential (mV)."""
     return 1.0 / (1.0 + jnp.exp(-MG_SLOPE * v_abs) * (MG / MG0))
 
 
-def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants):
+def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants,
+              sequential: bool = False):
     """Advance every cell by one step and apply this step's input (summed weights, mV, each (n_cells,)).
 
-    Returns (new state, spiked (n_cells,) bool).
+    ``sequential``: the AMPA and GABA inputs are summed loads (:func:`event_load`) rather than summed weights, and
+    several events of one channel in a step saturate toward the reversal as the original's one-by-one jumps do.
+    With one event per step both forms are the same. Returns (new state, spiked (n_cells,) bool).
     """
     ampa = s.ampa * c.decay_ampa
     nmda = s.nmda * c.decay_nmda
@@ -140,11 +157,19 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
 
     v = jnp.clip(ampa + nmda + gaba_prox + gaba_dist + ahp, c.rmp, -c.rmp)
     # driving-force factors 1 - V/E, written with reciprocals (a float division costs several multiplications)
-    ampa = jnp.maximum(ampa + ampa_in * (1.0 - v * (1.0 / E_AMPA)), 0.0)
+    if sequential:
+        # (E - V)(1 - exp(-L/E)) = the sum of one-by-one jumps; written as a jump per unit load times the load
+        ampa_jump = (E_AMPA - v) * -jnp.expm1(ampa_in * (-1.0 / E_AMPA))
+        gaba_prox_jump = (v - E_GABA) * -jnp.expm1(gaba_prox_in * (1.0 / E_GABA))
+        gaba_dist_jump = (v - E_GABA) * -jnp.expm1(gaba_dist_in * (1.0 / E_GABA))
+    else:
+        ampa_jump = ampa_in * (1.0 - v * (1.0 / E_AMPA))
+        gaba_factor = 1.0 - v * (1.0 / E_GABA)
+        gaba_prox_jump, gaba_dist_jump = gaba_prox_in * gaba_factor, gaba_dist_in * gaba_factor
+    ampa = jnp.maximum(ampa + ampa_jump, 0.0)
     nmda = jnp.where(nmda < E_NMDA, nmda + nmda_in * mg_block(c.rmp + v) * (1.0 - v * (1.0 / E_NMDA)), nmda)
-    gaba_factor = 1.0 - v * (1.0 / E_GABA)
-    gaba_prox = jnp.where(gaba_prox > E_GABA, jnp.minimum(gaba_prox - gaba_prox_in * gaba_factor, 0.0), gaba_prox)
-    gaba_dist = jnp.where(gaba_dist > E_GABA, jnp.minimum(gaba_dist - gaba_dist_in * gaba_factor, 0.0), gaba_dist)
+    gaba_prox = jnp.where(gaba_prox > E_GABA, jnp.minimum(gaba_prox - gaba_prox_jump, 0.0), gaba_prox)
+    gaba_dist = jnp.where(gaba_dist > E_GABA, jnp.minimum(gaba_dist - gaba_dist_jump, 0.0), gaba_dist)
 
     vm = jnp.clip(c.rmp + ampa + nmda + gaba_prox + gaba_dist + ahp, VM_MIN, VM_MAX)
     crossed = (since >= c.n_refractory) & (vm > c.vth + excess)

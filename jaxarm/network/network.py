@@ -136,7 +136,8 @@ class Network:
         return syn_mod.DeliveryShape(group_slices=slices, excitatory=lay.group_is_excitatory,
                                      capacity=tuple(c.spike_capacity),
                                      batch_share=tuple(float(x) for x in c.batch_spike_capacity), max_passes=self.max_passes, n_slots=self.n_slots,
-                                     n_cells=c.n_cells, n_plastic=lay.n_plastic, bookkeeping=c.plasticity_bookkeeping)
+                                     n_cells=c.n_cells, n_plastic=lay.n_plastic, bookkeeping=c.plasticity_bookkeeping,
+                                     sequential=c.event_summation == "sequential")
 
     @cached_property
     def p_synapses(self) -> slice:
@@ -188,7 +189,7 @@ class Network:
         drive = counts * self.noise_weights  # (3, n): AMPA, GABA-prox, GABA-dist
         cells, net_spiked = cell_mod.cell_step(
             state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
-            self.cell_constants)
+            self.cell_constants, sequential=c.event_summation == "sequential")
         p, p_spiked = proprio_mod.p_step(state.p, m)
         spiked = jnp.concatenate([net_spiked, p_spiked])
         state = state._replace(
@@ -231,7 +232,7 @@ class Network:
         ring = syn_mod.deliver_p_window(
             state.ring, state.p.next_step, state.p.interval_steps, state.step, n_steps, wiring, state.wgain,
             self.p_synapses, self.pops.start["P"], proprio_mod.NEVER_STEPS, max_spikes=n_steps // min_interval + 1,
-            n_slots=self.n_slots, n_cells=self.config.n_cells)
+            n_slots=self.n_slots, n_cells=self.config.n_cells, sequential=self.config.event_summation == "sequential")
         state = state._replace(ring=ring)
         full, rest = divmod(n_steps, self.block_steps)
         outs = []

@@ -69,9 +69,14 @@ def hash32(x):
 
 
 def noise_weights(config: NetworkConfig) -> np.ndarray:
-    """(3, n_cells) float32 event weight of every lane, mV."""
-    return np.concatenate([np.repeat(np.array([[w for w, _ in NOISE_TABLE[p]]], np.float32).T, config.size(p), 1)
-                           for p in NETWORK_POPULATIONS], axis=1)
+    """(3, n_cells) float32 event weight of every lane, mV; with ``event_summation="sequential"`` the event's load
+    (:func:`jaxarm.network.cell.event_load`), so k events in a step add k loads."""
+    w = np.concatenate([np.repeat(np.array([[w for w, _ in NOISE_TABLE[p]]], np.float32).T, config.size(p), 1)
+                        for p in NETWORK_POPULATIONS], axis=1)
+    if config.event_summation == "sequential":
+        from jaxarm.network.cell import E_AMPA, E_GABA, event_load
+        w = np.stack([event_load(w[0], E_AMPA), event_load(w[1], -E_GABA), event_load(w[2], -E_GABA)])
+    return w.astype(np.float32)
 
 
 def base_rates_hz(config: NetworkConfig) -> np.ndarray:

@@ -51,6 +51,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from jaxarm.network.cell import E_AMPA, E_GABA, event_load
 from jaxarm.network.wiring import DELAY_BITS, N_CHANNELS, GroupTables, Wiring
 
 #: ``pdope`` of an untagged synapse and last spike time of a cell that has not fired in this run, ms
@@ -95,6 +96,7 @@ class DeliveryShape(NamedTuple):
     n_cells: int
     n_plastic: int
     bookkeeping: bool
+    sequential: bool = False     # AMPA/GABA weights enter the ring as loads (jaxarm.network.cell.event_load)
 
 
 def list_length(shape: DeliveryShape, g: int, n_networks: int) -> int:
@@ -134,6 +136,8 @@ def _group_pass(ring, pdope_ms, remaining, steps, last_spike_ms, prev_spike_ms, 
     packed = _row(tables.out_packed, net, cell, tables_batched)  # (K, C) row gathers
     syn = _row(tables.out_syn, net, cell, tables_batched)
     w = _row(tables.out_weight, net, cell, tables_batched) * wgain.at[net[:, None], syn].get(mode="clip")
+    if shape.sequential:
+        w = event_load(w, E_AMPA if shape.excitatory[g] else -E_GABA)
     delay = packed & ((1 << DELAY_BITS) - 1)
     index = (net * r)[:, None] + jax.lax.rem(s[:, None] + delay, shape.n_slots) * (N_CHANNELS * n) + (
         packed >> DELAY_BITS)
@@ -235,17 +239,21 @@ def deliver_block(ring, pdope_ms, counters: Counters, spike_step, last_spike_ms,
 
 
 def deliver_p_window(ring, next_step, interval_steps, first_step, n_steps: int, wiring: Wiring, wgain, p_synapses: slice,
-                     p_start_id: int, never: int, *, max_spikes: int, n_slots: int, n_cells: int):
+                     p_start_id: int, never: int, *, max_spikes: int, n_slots: int, n_cells: int,
+                     sequential: bool = False):
     """Write the P -> ES input of every P spike in steps (first_step, first_step + n_steps] into the ring.
 
     ``next_step``/``interval_steps``: (n_P,) P train state at ``first_step`` (intervals do not change inside the
-    window). ``p_synapses``: the static slice of the P -> ES synapses. ``max_spikes``: most spikes one train can
+    window). ``p_synapses``: the static slice of the P -> ES synapses. ``sequential``: write AMPA loads
+    (:func:`jaxarm.network.cell.event_load`) instead of weights. ``max_spikes``: most spikes one train can
     have in the window (n_steps // shortest interval + 1). Needs n_slots >= n_steps + the P delay.
     """
     pre = wiring.pre[p_synapses] - p_start_id
     nxt, interval = next_step[pre], interval_steps[pre]
     delay, target = wiring.delay_steps[p_synapses], wiring.target[p_synapses]
     w = wiring.weight[p_synapses] * wgain[p_synapses]
+    if sequential:
+        w = event_load(w, E_AMPA)
     w_nmda = wiring.nmda[p_synapses]
     last = first_step + n_steps
     spike = nxt
