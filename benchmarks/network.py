@@ -3,6 +3,7 @@ on), compile time, peak memory, capacity counters.
 
     python benchmarks/network.py --json                 # default dt, 1/60/300 networks, 3 repeats each (medians)
     python benchmarks/network.py --dt 0.5 --networks 60 --repeats 5
+    python benchmarks/network.py --json --networks 1,60 --brian2    # with the Brian2 comparison (needs '.[bench]')
 
 Each network size runs in its own process (so peak RSS is that size's, and compile time is a cold compile). The
 drive is the training drive of experiments/network_rates.py (simple arm in closed loop, motor babbling, no
@@ -12,8 +13,17 @@ transient — all P cells fire at 1 ms — that costs extra spike-list passes; i
 ``transient_network_s_per_s``), then timed runs continue from there. Throughput = networks x simulated seconds /
 wall seconds of the compiled run (median over repeats), compile excluded and reported separately.
 
-The Brian2 C++-standalone comparison asked for by the issue is not implemented: the JSON's "brian2" field says so
-(and whether brian2 is installed), and no "brian2_network_s_per_s"/"ratio_vs_brian2" keys are emitted.
+Brian2 comparison (``--brian2``; done by default whenever brian2 is installed, ``--no-brian2`` skips it): the same
+network in Brian2's C++ standalone mode (benchmarks/brian2_network.py: same cells, same synapses as the wiring of
+``--seed``, same background, same dt; fixed drive — P cells coding the arm's start posture — and no plasticity, so
+Brian2 gets the lighter job), one network, ``--brian2-seconds`` simulated, its compiled binary run ``--repeats``
+times (median), build (code generation + C++ compile) excluded and reported separately. Added to the JSON:
+``brian2_network_s_per_s`` (one network, single-threaded), ``brian2_build_s``, ``brian2_rates_hz`` and, for
+comparison, ``jaxarm_fixed_drive_rates_hz`` (jaxarm under the same fixed drive, 8 noise realisations) and
+``ratio_vs_brian2``: jaxarm's network-seconds per second at each network count (its batched throughput, what a user
+running that many networks gets) divided by Brian2's for one network — key "1" is jaxarm one network against Brian2
+one network. A 1-network jaxarm run is added to ``--networks`` when missing. Without brian2 the "brian2" field says
+it is absent and those keys are left out.
 """
 from __future__ import annotations
 
@@ -83,6 +93,26 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
     }
 
 
+def brian2_installed() -> bool:
+    """Whether brian2 is importable (without importing it here: it runs in its own process)."""
+    import importlib.util
+
+    return importlib.util.find_spec("brian2") is not None
+
+
+def run_brian2(dt_ms: float | None, seconds: float, repeats: int, seed: int, jaxarm_noise: int = 4) -> dict:
+    """benchmarks/brian2_network.py in its own process; its JSON result."""
+    cmd = [sys.executable, os.path.join(REPO, "benchmarks", "brian2_network.py"), "--json", "--seconds", str(seconds),
+           "--repeats", str(repeats), "--seed", str(seed), "--jaxarm-rates", str(jaxarm_noise)]
+    if dt_ms is not None:
+        cmd += ["--dt", str(dt_ms)]
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode:
+        raise RuntimeError(f"Brian2 benchmark failed ({' '.join(cmd)}):\n{out.stderr[-4000:]}")
+    text = out.stdout
+    return json.loads(text[text.index("{"):])
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--networks", default="1,60,300", help="comma-separated network counts")
@@ -92,6 +122,11 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=float, default=1.0, help="untimed simulated seconds before timing")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", action="store_true")
+    b2 = ap.add_mutually_exclusive_group()
+    b2.add_argument("--brian2", dest="brian2", action="store_true", default=None,
+                    help="compare with Brian2 C++ standalone (default: when brian2 is installed)")
+    b2.add_argument("--no-brian2", dest="brian2", action="store_false", help="skip the Brian2 comparison")
+    ap.add_argument("--brian2-seconds", type=float, default=10.0, help="simulated seconds of each Brian2 run")
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker is not None:
@@ -99,8 +134,15 @@ def main(argv=None) -> int:
         print(json.dumps(worker(args.worker, args.dt, seconds, args.repeats, args.seed, args.warmup)))
         return 0
 
+    installed = brian2_installed()
+    compare = installed if args.brian2 is None else args.brian2
+    if compare and not installed:
+        ap.error("--brian2: brian2 is not installed: install the benchmark extra with `pip install -e '.[bench]'`")
+    counts = [int(x) for x in args.networks.split(",")]
+    if compare and 1 not in counts:
+        counts = [1] + counts
     runs = {}
-    for n in (int(x) for x in args.networks.split(",")):
+    for n in counts:
         cmd = [sys.executable, os.path.abspath(__file__), "--worker", str(n), "--repeats", str(args.repeats),
                "--seed", str(args.seed), "--warmup", str(args.warmup)]
         if args.dt is not None:
@@ -125,23 +167,36 @@ def main(argv=None) -> int:
         "extra_passes_per_network_s": {str(n): r["extra_passes_per_network_s"] for n, r in runs.items()},
         "dt_ms": any_run["dt_ms"], "block_steps": any_run["block_steps"], "spike_capacity": any_run["spike_capacity"],
         "cpu_count": os.cpu_count(), "load_average_at_end": os.getloadavg(),
-        "brian2": _brian2_status(),
+        "brian2": ("compared: benchmarks/brian2_network.py" if compare else
+                   "installed; comparison skipped (--no-brian2)" if installed else
+                   "absent (install the 'bench' extra to compare: pip install -e '.[bench]')"),
         "runs": runs,
     }
+    if compare:
+        b2r = run_brian2(args.dt, args.brian2_seconds, args.repeats, args.seed, jaxarm_noise=8)
+        b = b2r["brian2"]
+        result.update({
+            "brian2_network_s_per_s": b["network_s_per_s"],
+            "brian2_build_s": b["build_s"],
+            "brian2_rates_hz": b["rates_hz"],
+            "jaxarm_fixed_drive_rates_hz": b2r["jaxarm_fixed_drive"]["rates_hz"],
+            "ratio_vs_brian2": {str(n): r["network_s_per_s"] / b["network_s_per_s"] for n, r in runs.items()},
+            "brian2_detail": b2r,
+            "load_average_at_end": os.getloadavg(),
+        })
+        if not args.json:
+            print(f"Brian2 {b['brian2_version']} C++ standalone, 1 network, {b['simulated_s']:g} s: "
+                  f"{b['network_s_per_s']:.2f} network-s/s (median of {b['repeats']}), build {b['build_s']:.1f} s; "
+                  "jaxarm / Brian2: " + ", ".join(f"{n} networks {v:.2f}"
+                                                  for n, v in result["ratio_vs_brian2"].items()))
+            print("rates Hz, Brian2 / jaxarm (same fixed drive): " + ", ".join(
+                f"{p} {b['rates_hz'][p]:.2f}/{result['jaxarm_fixed_drive_rates_hz'][p]:.2f}" for p in b["rates_hz"]))
     if args.json:
         print(json.dumps(result, indent=1))
     else:
         print(f"overflows {result['overflows']}; load average {result['load_average_at_end']}; "
               f"brian2: {result['brian2']}")
     return 0
-
-
-def _brian2_status() -> str:
-    try:
-        import brian2  # noqa: F401
-    except ImportError:
-        return "absent (install the 'bench' extra to compare)"
-    return "installed, but the Brian2 port of the network is not implemented yet"
 
 
 if __name__ == "__main__":
