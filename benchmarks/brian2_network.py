@@ -25,8 +25,8 @@ How the model maps onto Brian2 (the step is :func:`jaxarm.network.cell.cell_step
 * the Poisson background is drawn in that same operation: the number of events of every receptor and cell in the
   step, by inverting the Poisson(rate dt) CDF with one ``rand()`` (the method of jaxarm's noise, truncated where the
   tail is below 1e-12). Brian2's own ways give the same distribution no faster (``--noise``; 10 s at dt 0.25 ms,
-  network-seconds per CPU-second of the binary on the 2-core development machine: 12.7 this way, 12.1 with three
-  ``PoissonInput``s, 6.9 with ``poisson()`` in the update);
+  linear summation, network-seconds per CPU-second of the binary on the 2-core development machine: 12.7 this way,
+  12.1 with three ``PoissonInput``s, 6.9 with ``poisson()`` in the update);
 * the threshold (``thresholds`` slot, after the cell update) is the same test every step: not refractory, Vm above
   the dynamic threshold and not above Vblock (depolarisation block); the reset lowers AHP, raises the threshold and
   restarts the refractory counter;
@@ -38,9 +38,12 @@ How the model maps onto Brian2 (the step is :func:`jaxarm.network.cell.cell_step
 Differences from jaxarm's step (none changes the model; they change the random numbers): Brian2 computes in float64
 (jaxarm float32) and draws the noise from its own RNG (same Poisson distribution, other samples). So rates agree
 statistically, not spike by spike: :func:`jaxarm_fixed_drive_rates` runs jaxarm under the same fixed drive and
-:func:`compare_rates` compares (``--jaxarm-rates N``; 10 s, 8 Brian2 repeats against 8 jaxarm noise realisations:
-every population within 1.5 %, |z| < 1.1). Brian2's RNG is seeded afresh by each run of the binary (``--noise-seed``
-fixes it), so every timed repeat is also another noise realisation.
+:func:`compare_rates` compares. ``python benchmarks/brian2_network.py --repeats 16 --jaxarm-rates 16`` (10 s, 16
+Brian2 runs against 16 jaxarm noise realisations, same wiring; sequential summation): every population within
+2.1 %, each difference within 1.4 standard errors (Brian2 was the higher in all six, by 0.3-2.1 %; the populations
+are coupled, so these are not six independent signs). With linear summation, 8 against 8: within 1.5 %. Brian2's
+RNG is seeded afresh by each run of the binary (``--noise-seed`` fixes it), so every timed repeat is also another
+noise realisation.
 
 What benchmarks/network.py compares this with is heavier for jaxarm: its throughput is measured under the closed-loop
 training drive (arm, readout, babbling) with plasticity bookkeeping on; Brian2 runs the network alone.
