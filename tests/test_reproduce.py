@@ -133,3 +133,16 @@ def test_original_preset_reports_top30_null(tmp_path, capsys):
     # a rerun reuses the finished folder
     assert main(["reproduce", "--preset", "original", "--out", str(out), *TINY]) == 0
     assert "reused" in capsys.readouterr().out
+
+
+def test_every_shipped_preset_loads_and_is_within_bounds():
+    """Each jaxarm/presets/*.json validates (fields, bounds, provenance) and names the arm it was tuned for."""
+    from jaxarm.evolve import presets
+
+    names = presets.available()
+    assert list(names)[0] == "original"
+    for name in names:
+        p = presets.load(name)
+        assert p.name == name and p.arms
+        if name != "original":
+            assert p.provenance.get("command") and "seed" in p.provenance
