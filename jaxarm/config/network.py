@@ -68,6 +68,11 @@ class NetworkConfig:
             88 mV vs the original's 49 mV). One event per step gives the same jump either way.
         plasticity_bookkeeping: keep each cell's last spike time and tag plastic synapses on postsynaptic spikes
             (``pdope``), for reward-modulated STDP.
+        kernel: what runs a chunk of steps. "native": one compiled C++ call per chunk for the whole batch
+            (``jaxarm.network.native``; CPU only, built on first use with the system C++ compiler); "xla": pure
+            JAX (any backend; the spike-list fields above apply to it only); "auto" (default): native on a CPU
+            backend when it builds, else xla. Same model and state layout; results agree to float rounding.
+        native_threads: threads the native kernel splits a batch of networks over (1 = the calling thread only).
     """
 
     dt_ms: float = 0.25
@@ -89,6 +94,8 @@ class NetworkConfig:
     noise_max_rate_hz: float = 250.0
     event_summation: str = "sequential"
     plasticity_bookkeeping: bool = True
+    kernel: str = "auto"
+    native_threads: int = 1
 
     def __post_init__(self):
         check_range(self, "dt_ms", 0.01, 1.0)
@@ -135,6 +142,8 @@ class NetworkConfig:
         if not isinstance(self.plasticity_bookkeeping, bool):
             raise ConfigError(f"NetworkConfig.plasticity_bookkeeping = {self.plasticity_bookkeeping!r}: "
                               "must be True or False")
+        check_choice(self, "kernel", ("auto", "native", "xla"))
+        check_range(self, "native_threads", 1, 256, integer=True)
 
     # ----- derived static quantities -----
     def size(self, pop: str) -> int:

@@ -144,6 +144,47 @@ class Network:
         start = self.layout.offset["P->ES"]
         return slice(start, start + self.config.size("ES") * self.layout.in_degree["P->ES"])
 
+    @cached_property
+    def native_cell_floats(self) -> np.ndarray:
+        """(12, n_cells) float32 cell constants in the native kernel's order."""
+        c = self.cell_constants
+        return np.stack([c.rmp, c.vth, c.vblock, c.ahpwt, c.post_spike_excess, c.decay_ampa, c.decay_nmda,
+                         c.decay_gaba_prox, c.decay_gaba_dist, c.decay_ahp, c.decay_rr, c.decay_rr_first]
+                        ).astype(np.float32)
+
+    @cached_property
+    def native_cell_group(self) -> np.ndarray:
+        """(n_cells,) int32 spike group of every network cell."""
+        out = np.zeros(self.config.n_cells, np.int32)
+        for g, ranges in enumerate(self.delivery_shape.group_slices):
+            for a, b in ranges:
+                out[a:b] = g
+        return out
+
+    @cached_property
+    def native_cell_row(self) -> np.ndarray:
+        """(n_cells,) int32 row of every network cell in its group's delivery tables."""
+        out = np.zeros(self.config.n_cells, np.int32)
+        for ranges in self.delivery_shape.group_slices:
+            row = 0
+            for a, b in ranges:
+                out[a:b] = np.arange(row, row + b - a)
+                row += b - a
+        return out
+
+    @property
+    def uses_native_kernel(self) -> bool:
+        """Whether chunks run in the native kernel (``config.kernel``; "auto" decides when first traced)."""
+        if self.config.kernel == "xla":
+            return False
+        from jaxarm.network import native
+        if self.config.kernel == "native":
+            if not native.available():
+                raise RuntimeError(f"NetworkConfig.kernel = 'native' but the native kernel is unavailable: "
+                                   f"{native.status()} (use kernel='auto' or 'xla')")
+            return True
+        return native.available()
+
     def make_wiring(self, key) -> Wiring:
         return make_wiring(self.config, key)
 
@@ -228,6 +269,10 @@ class Network:
 
     def _chunk(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
         """Write the P input of the next ``n_steps`` (<= chunk_steps) steps, then run them block by block."""
+        if self.uses_native_kernel:
+            from jaxarm.network import native
+            state, spikes = native.chunk(self, wiring, state, params, n_steps)
+            return state, (spikes if collect else None)
         min_interval = self.config.steps(1000.0 / self.config.p_rate_hz)
         ring = syn_mod.deliver_p_window(
             state.ring, state.p.next_step, state.p.interval_steps, state.step, n_steps, wiring, state.wgain,

@@ -1,0 +1,175 @@
+"""Native CPU kernel for the network's hot loop: one XLA FFI call runs a whole chunk of steps of every network.
+
+Why: on a CPU the clock-driven network is a few simple operations per cell and step plus a sparse delivery; XLA:CPU
+spends most of its time between its kernels (a step is ~20 small fusions over (B, 512) arrays, and delivery is a
+batch of scatters sized for the worst case). ``chunk_kernel.cc`` does the same work in one loop per network, with
+branches where the model is sparse (most cells get no input in most steps), and delivers each spike where it lands,
+so it has no spike-list capacity to overflow. The model, the state layout and the noise stream are the XLA path's
+(:meth:`jaxarm.network.network.Network._chunk`); a state can be advanced by either path and continued by the other.
+Results agree with the XLA path to float rounding (tests/test_native_kernel.py), not bit for bit: exp/log come from
+the C library, not from XLA, and spike trains of a chaotic network diverge after a while, as they would between
+two machines.
+
+Build: compiled on first use with the system C++ compiler (``$CXX`` or ``c++``; C++17) against the XLA FFI headers
+that ship with jaxlib, into ``$JAXARM_CACHE_DIR`` (default ``~/.cache/jaxarm``), keyed by the source, jaxlib version,
+compiler flags and CPU. No compiler, or a failed build: :func:`available` says why and ``NetworkConfig.kernel =
+"auto"`` uses the XLA path.
+
+Batching: ``vmap_method="expand_dims"``: unbatched inputs (shared wiring, constants) arrive with size-1 batch axes
+and the kernel broadcasts them without copying, at any depth of nested ``vmap``.
+"""
+from __future__ import annotations
+
+import ctypes
+import functools
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+from typing import TYPE_CHECKING
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from jaxarm.network.network import Network, NetworkParams, State
+    from jaxarm.network.wiring import Wiring
+
+TARGET = "jaxarm_network_chunk"
+SOURCE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "chunk_kernel.cc")
+CXX_FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-std=c++17", "-fPIC", "-shared", "-pthread")
+
+
+def _cpu_signature() -> str:
+    """CPU model and flags (the library is built with -march=native, so it is specific to the CPU)."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            lines = [ln for ln in f if ln.startswith(("model name", "flags"))][:2]
+        return "".join(lines)
+    except OSError:
+        return platform.processor() + platform.machine()
+
+
+def cache_dir() -> str:
+    return os.environ.get("JAXARM_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "jaxarm")
+
+
+def _compiler() -> str | None:
+    for cand in (os.environ.get("CXX"), "c++", "g++", "clang++"):
+        if cand and shutil.which(cand):
+            return cand
+    return None
+
+
+@functools.lru_cache(maxsize=None)
+def _build() -> tuple[str | None, str]:
+    """(path of the shared library or None, reason). Builds once per source/jaxlib/CPU; atomic, so concurrent
+    processes are safe."""
+    cxx = _compiler()
+    if cxx is None:
+        return None, "no C++ compiler found (set $CXX)"
+    import jaxlib
+
+    with open(SOURCE, "rb") as f:
+        src = f.read()
+    key = hashlib.sha256(src + repr((jaxlib.__version__, CXX_FLAGS, cxx, _cpu_signature())).encode()).hexdigest()[:16]
+    path = os.path.join(cache_dir(), f"chunk_kernel-{key}.so")
+    if os.path.exists(path):
+        return path, "cached"
+    os.makedirs(cache_dir(), exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=cache_dir())
+    os.close(fd)
+    cmd = [cxx, *CXX_FLAGS, "-w", "-I", jax.ffi.include_dir(), SOURCE, "-o", tmp]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        os.unlink(tmp)
+        return None, f"compiler failed to run: {e}"
+    if proc.returncode != 0:
+        os.unlink(tmp)
+        return None, f"build failed ({' '.join(cmd)}): {proc.stderr.strip()[-2000:]}"
+    os.replace(tmp, path)
+    return path, "built"
+
+
+@functools.lru_cache(maxsize=None)
+def _register() -> tuple[bool, str]:
+    path, why = _build()
+    if path is None:
+        return False, why
+    try:
+        lib = ctypes.cdll.LoadLibrary(path)
+        jax.ffi.register_ffi_target(TARGET, jax.ffi.pycapsule(lib.JaxarmNetworkChunk), platform="cpu")
+    except Exception as e:  # noqa: BLE001 - any loading problem means "not available", with the reason
+        return False, f"loading {path} failed: {e}"
+    return True, f"{why}: {path}"
+
+
+def available() -> bool:
+    """Whether the native kernel can be used here (CPU backend, library built and registered)."""
+    return jax.default_backend() == "cpu" and _register()[0]
+
+
+def status() -> str:
+    """Why the native kernel is or is not available (for error messages and benchmarks)."""
+    if jax.default_backend() != "cpu":
+        return f"JAX backend is {jax.default_backend()!r}; the native kernel is CPU-only"
+    return _register()[1]
+
+
+#: Input -> output aliases: the state is updated in place (no copy of the ring per chunk).
+ALIASES = {0: 0, 1: 1, 2: 2, 3: 3, 4: 4, 5: 5, 6: 6, 7: 7, 8: 8, 13: 9, 15: 10, 16: 11, 17: 12, 18: 13}
+
+
+def _as(x, dtype):
+    return jnp.asarray(x).astype(dtype)
+
+
+def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkParams", n_steps: int):
+    """``n_steps`` steps of one network (``vmap`` for many) with the native kernel. Returns (state, spikes
+    (n_steps, n_all) bool). Same contract as the XLA path's chunk."""
+    ok, why = _register()
+    if not ok:
+        raise RuntimeError(f"jaxarm native network kernel unavailable: {why}")
+    c = net.config
+    lay = net.layout
+    ps = net.p_synapses
+    s = state
+    cells = s.cells
+    groups = []
+    for g in wiring.groups:
+        groups += [_as(g.out_syn, jnp.int32), _as(g.out_packed, jnp.int32), _as(g.out_weight, jnp.float32),
+                   _as(g.out_nmda, jnp.float32), _as(g.in_plastic, jnp.int32), _as(g.in_plastic_pre, jnp.int32)]
+    args = [
+        _as(s.step, jnp.int32), cells.ampa, cells.nmda, cells.gaba_prox, cells.gaba_dist, cells.ahp,
+        cells.vthc_excess, _as(cells.steps_since_spike, jnp.int32), _as(s.p.next_step, jnp.int32),
+        _as(s.p.interval_steps, jnp.int32), _as(s.noise.step_seed, jnp.uint32), _as(s.noise.lane_key, jnp.uint32),
+        _as(s.noise.thresholds, jnp.uint32), s.ring, s.wgain, s.pdope_ms, s.last_spike_ms, s.prev_spike_ms,
+        _as(s.spike_count, jnp.int32), _as(params.max_plast_t_ms, jnp.float32),
+        _as(wiring.pre[ps] - net.pops.start["P"], jnp.int32), _as(wiring.delay_steps[ps], jnp.int32),
+        _as(wiring.target[ps], jnp.int32), _as(wiring.weight[ps], jnp.float32), _as(wiring.nmda[ps], jnp.float32),
+        jnp.asarray(net.native_cell_floats), jnp.asarray(net.cell_constants.n_refractory, jnp.int32),
+        jnp.asarray(net.noise_weights), jnp.asarray(net.native_cell_group), jnp.asarray(net.native_cell_row),
+        *groups,
+    ]
+    n, n_all = c.n_cells, c.n_all
+    f32, i32 = jnp.float32, jnp.int32
+    sds = jax.ShapeDtypeStruct
+    out_types = [sds((), i32)] + [sds((n,), f32)] * 6 + [sds((n,), i32), sds((c.n_p,), i32), sds(s.ring.shape, f32),
+                                                      sds(s.pdope_ms.shape, f32), sds((n_all,), f32),
+                                                      sds((n_all,), f32), sds((n_all,), i32),
+                                                      sds((n_steps, n_all), jnp.bool_)]
+    call = jax.ffi.ffi_call(TARGET, out_types, vmap_method="expand_dims", input_output_aliases=ALIASES)
+    outs = call(*args, n_steps=np.int64(n_steps), n_slots=np.int64(net.n_slots),
+                p_syn_offset=np.int64(ps.start), sequential=np.int64(c.event_summation == "sequential"),
+                dt_ms=np.float32(c.dt_ms), excitatory=np.asarray(lay.group_is_excitatory, np.int64),
+                n_threads=np.int64(c.native_threads))
+    (step, ampa, nmda, gprox, gdist, ahp, excess, since, p_next, ring, pdope, last, prev, count, spikes) = outs
+    cells = cells._replace(ampa=ampa, nmda=nmda, gaba_prox=gprox, gaba_dist=gdist, ahp=ahp, vthc_excess=excess,
+                           steps_since_spike=since)
+    state = s._replace(step=step, cells=cells, p=s.p._replace(next_step=p_next), ring=ring, pdope_ms=pdope,
+                       last_spike_ms=last, prev_spike_ms=prev, spike_count=count)
+    return state, spikes

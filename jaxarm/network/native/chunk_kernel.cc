@@ -1,0 +1,467 @@
+// Native CPU kernel for one chunk of network steps (jaxarm.network.native; the XLA path is
+// jaxarm.network.network.Network._chunk). Units: ms and mV, as in the Python network.
+//
+// Same model, same order of operations per step as the XLA path:
+//   1. P -> ES input of the whole chunk written into the ring at the chunk start (deliver_p_window);
+//   2. per step m: read and clear ring slot m % n_slots; Poisson noise counts from the integer hash
+//      (bit-identical to noise.noise_counts); INTF6 cell update (cell.cell_step); P trains (proprio.p_step);
+//      last / previous spike times and spike counts; spikes of the step delivered into the ring at
+//      (m + delay) % n_slots and plastic inputs tagged.
+// The XLA path delivers after blocks of L <= the shortest delay and refractory period; delivering each spike at
+// its own step is the same (its arrival slot is not read before m + delay; a cell fires at most once per block,
+// so "the presynaptic spike at or before t_post" is the same spike). Spike lists have no capacity here: nothing
+// is ever lost and no extra passes exist. Floating-point results differ from XLA's in the last bits (exp/log
+// implementations, summation order); the noise counts are exact.
+//
+// Batching: every input carries the batch dimensions of vmap's "expand_dims" method in front of its per-network
+// shape (size 1 where not batched); the kernel broadcasts them, so shared wiring is read in place, never copied.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "xla/ffi/api/ffi.h"
+
+namespace ffi = xla::ffi;
+
+namespace {
+
+constexpr float kEAmpa = 65.0f, kENmda = 90.0f, kEGaba = -15.0f;
+constexpr float kMg = 1.6f, kMg0 = 3.57f, kMgSlope = 0.062f;
+constexpr float kVmMin = -90.0f, kVmMax = 0.0f;
+constexpr int32_t kSinceMax = 1 << 30;
+constexpr int32_t kNever = 1 << 30;
+constexpr uint32_t kGolden = 0x9E3779B9u;
+constexpr float kMaxJumpFraction = 1.0f - 1e-6f;
+constexpr int kDelayBits = 10;
+
+// Inputs, in order (per-network shapes; see jaxarm/network/native/__init__.py).
+enum In {
+  kStep, kAmpa, kNmda, kGabaProx, kGabaDist, kAhp, kExcess, kSince, kPNext, kPInterval, kStepSeed, kLaneKey,
+  kThresholds, kRing, kWgain, kPdope, kLast, kPrev, kCount, kWindow, kPPre, kPDelay, kPTarget, kPWeight, kPNmda,
+  kCellF, kNRef, kNoiseW, kCellGroup, kCellRow, kGroupTables  // then 6 tables per group
+};
+constexpr int kTablesPerGroup = 6;  // out_syn, out_packed, out_weight, out_nmda, in_plastic, in_plastic_pre
+// Outputs, in order.
+enum Out { oStep, oAmpa, oNmda, oGabaProx, oGabaDist, oAhp, oExcess, oSince, oPNext, oRing, oPdope, oLast, oPrev,
+           oCount, oSpikes, kNumOut };
+// Per-network rank of every input (the rest of an input's dimensions are batch dimensions).
+constexpr int kBaseRankFixed[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0, 2, 3, 1, 1, 1, 1, 1, 1, 0, 1, 1, 1, 1, 1,
+                                  2, 1, 2, 1, 1};
+constexpr int kBaseRankOut[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2};
+
+inline uint32_t hash32(uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7FEB352Du;
+  x ^= x >> 15;
+  x *= 0x846CA68Bu;
+  return x ^ (x >> 16);
+}
+
+inline float event_load(float w, float e_rev) {
+  return -e_rev * std::log1p(-std::min(w / e_rev, kMaxJumpFraction));
+}
+
+struct View {  // one input or output: base pointer, per-network element count, element size, batch strides
+  char* data;
+  int64_t per_network;
+  int64_t elem;
+  std::vector<int64_t> batch_dims;
+};
+
+struct Attrs {
+  int64_t n_steps, n_slots, p_syn_offset, n_groups, sequential, exc[8];
+  float dt_ms;
+};
+
+template <typename T>
+inline T* at(const View& v, int64_t offset) {
+  return reinterpret_cast<T*>(v.data) + offset * v.per_network;
+}
+
+// Batch offset of input v for the network with multi-index idx (broadcast where v has size 1).
+inline int64_t batch_offset(const View& v, const std::vector<int64_t>& idx) {
+  int64_t off = 0;
+  for (size_t d = 0; d < idx.size(); ++d) off = off * v.batch_dims[d] + (v.batch_dims[d] == 1 ? 0 : idx[d]);
+  return off;
+}
+
+// The vectorisable passes of a step, as functions of restrict-qualified arrays (so the compiler may vectorise).
+void noise_counts(int64_t lanes, int64_t kmax, uint32_t s, const uint32_t* __restrict__ lane_key,
+                  const uint32_t* __restrict__ thr, uint32_t* __restrict__ ub, int32_t* __restrict__ cb) {
+  for (int64_t l = 0; l < lanes; ++l) {
+    ub[l] = hash32(lane_key[l] ^ s);
+    cb[l] = 0;
+  }
+  for (int64_t k = 0; k < kmax; ++k) {
+    const uint32_t* __restrict__ tk = thr + k * lanes;
+    for (int64_t l = 0; l < lanes; ++l) cb[l] += (ub[l] >= tk[l]) ? 1 : 0;
+  }
+}
+
+void add_noise(int64_t n, const int32_t* __restrict__ cb, const float* __restrict__ w, float* __restrict__ inb) {
+  for (int64_t i = 0; i < n; ++i) inb[i] += float(cb[i]) * w[i];
+}
+
+void decay(int64_t n, float* __restrict__ x, const float* __restrict__ d) {
+  for (int64_t i = 0; i < n; ++i) x[i] *= d[i];
+}
+
+void refractory(int64_t n, int32_t* __restrict__ since, float* __restrict__ excess, const int32_t* __restrict__ n_ref,
+                const float* __restrict__ d_rr, const float* __restrict__ d_rr_first) {
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t sn = std::min(since[i], kSinceMax - 1) + 1;
+    const float rr = sn > n_ref[i] ? d_rr[i] : (sn == n_ref[i] ? d_rr_first[i] : 1.0f);
+    excess[i] *= rr;
+    since[i] = sn;
+  }
+}
+
+void potential(int64_t n, const float* __restrict__ a, const float* __restrict__ b, const float* __restrict__ c,
+               const float* __restrict__ d, const float* __restrict__ e, const float* __restrict__ rmp,
+               float* __restrict__ v) {
+  for (int64_t i = 0; i < n; ++i) v[i] = std::min(std::max(a[i] + b[i] + c[i] + d[i] + e[i], rmp[i]), -rmp[i]);
+}
+
+void has_input(int64_t n, const float* __restrict__ in, uint8_t* __restrict__ out) {
+  for (int64_t i = 0; i < n; ++i)
+    out[i] = (in[i] != 0.0f) | (in[n + i] != 0.0f) | (in[2 * n + i] != 0.0f) | (in[3 * n + i] != 0.0f);
+}
+
+void threshold(int64_t n, const float* __restrict__ a, const float* __restrict__ b, const float* __restrict__ c,
+               const float* __restrict__ d, const float* __restrict__ e, const float* __restrict__ rmp,
+               const int32_t* __restrict__ since, const int32_t* __restrict__ n_ref, const float* __restrict__ vth,
+               const float* __restrict__ excess, const float* __restrict__ vblock, uint8_t* __restrict__ out) {
+  for (int64_t i = 0; i < n; ++i) {
+    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], kVmMin), kVmMax);
+    out[i] = (since[i] >= n_ref[i]) & (vm > vth[i] + excess[i]) & (vm <= vblock[i]);
+  }
+}
+
+void run_network(const std::vector<View>& in, const std::vector<View>& out, const std::vector<int64_t>& idx,
+                 int64_t flat, const Attrs& a) {
+  auto I = [&](int k) { return batch_offset(in[k], idx); };
+  const int64_t n = in[kAmpa].per_network;
+  const int64_t n_p = in[kPNext].per_network;
+  const int64_t n_all = in[kLast].per_network;
+  const int64_t p_start = n_all - n_p;
+  const int64_t kmax = in[kThresholds].per_network / (3 * n);
+  const int64_t n_syn = in[kWgain].per_network;
+  const int64_t n_plastic = in[kPdope].per_network;
+  const int64_t n_psyn = in[kPPre].per_network;
+  const int64_t width = 4 * n;
+
+  // Copy the state into the outputs, then update the outputs in place.
+  static const int copies[][2] = {{kAmpa, oAmpa}, {kNmda, oNmda}, {kGabaProx, oGabaProx}, {kGabaDist, oGabaDist},
+                                  {kAhp, oAhp}, {kExcess, oExcess}, {kSince, oSince}, {kPNext, oPNext},
+                                  {kRing, oRing}, {kPdope, oPdope}, {kLast, oLast}, {kPrev, oPrev},
+                                  {kCount, oCount}};
+  for (const auto& c : copies) {
+    const View& src = in[c[0]];
+    const View& dst = out[c[1]];
+    char* d = dst.data + flat * dst.per_network * dst.elem;
+    const char* s = src.data + I(c[0]) * src.per_network * src.elem;
+    if (d != s) std::memcpy(d, s, dst.per_network * dst.elem);
+  }
+  float* __restrict__ ampa = at<float>(out[oAmpa], flat);
+  float* __restrict__ nmda = at<float>(out[oNmda], flat);
+  float* __restrict__ gprox = at<float>(out[oGabaProx], flat);
+  float* __restrict__ gdist = at<float>(out[oGabaDist], flat);
+  float* __restrict__ ahp = at<float>(out[oAhp], flat);
+  float* __restrict__ excess = at<float>(out[oExcess], flat);
+  int32_t* __restrict__ since = at<int32_t>(out[oSince], flat);
+  int32_t* __restrict__ p_next = at<int32_t>(out[oPNext], flat);
+  float* __restrict__ ring = at<float>(out[oRing], flat);
+  float* __restrict__ pdope = at<float>(out[oPdope], flat);
+  float* __restrict__ last = at<float>(out[oLast], flat);
+  float* __restrict__ prev = at<float>(out[oPrev], flat);
+  int32_t* __restrict__ count = at<int32_t>(out[oCount], flat);
+  bool* spikes = at<bool>(out[oSpikes], flat);
+
+  const int32_t first_step = *at<int32_t>(in[kStep], I(kStep));
+  const int32_t* p_interval = at<int32_t>(in[kPInterval], I(kPInterval));
+  const uint32_t step_seed = *at<uint32_t>(in[kStepSeed], I(kStepSeed));
+  const uint32_t* lane_key = at<uint32_t>(in[kLaneKey], I(kLaneKey));
+  const uint32_t* thr = at<uint32_t>(in[kThresholds], I(kThresholds));
+  const float* wgain = at<float>(in[kWgain], I(kWgain));
+  const float window_ms = *at<float>(in[kWindow], I(kWindow));
+  const int32_t* p_pre = at<int32_t>(in[kPPre], I(kPPre));
+  const int32_t* p_delay = at<int32_t>(in[kPDelay], I(kPDelay));
+  const int32_t* p_target = at<int32_t>(in[kPTarget], I(kPTarget));
+  const float* p_weight = at<float>(in[kPWeight], I(kPWeight));
+  const float* p_nmda = at<float>(in[kPNmda], I(kPNmda));
+  const float* cf = at<float>(in[kCellF], I(kCellF));
+  const float *rmp = cf, *vth = cf + n, *vblock = cf + 2 * n, *ahpwt = cf + 3 * n, *post_excess = cf + 4 * n,
+              *d_ampa = cf + 5 * n, *d_nmda = cf + 6 * n, *d_gprox = cf + 7 * n, *d_gdist = cf + 8 * n,
+              *d_ahp = cf + 9 * n, *d_rr = cf + 10 * n, *d_rr_first = cf + 11 * n;
+  const int32_t* n_ref = at<int32_t>(in[kNRef], I(kNRef));
+  const float* noise_w = at<float>(in[kNoiseW], I(kNoiseW));
+  const int32_t* cell_group = at<int32_t>(in[kCellGroup], I(kCellGroup));
+  const int32_t* cell_row = at<int32_t>(in[kCellRow], I(kCellRow));
+
+  struct Tables {
+    const int32_t *out_syn, *out_packed;
+    const float *out_weight, *out_nmda;
+    const int32_t *in_plastic, *in_pre;
+    int64_t out_width, in_width;
+  };
+  std::vector<Tables> groups(a.n_groups);
+  for (int64_t g = 0; g < a.n_groups; ++g) {
+    const int base = kGroupTables + kTablesPerGroup * g;
+    groups[g] = Tables{at<int32_t>(in[base], I(base)), at<int32_t>(in[base + 1], I(base + 1)),
+                       at<float>(in[base + 2], I(base + 2)), at<float>(in[base + 3], I(base + 3)),
+                       at<int32_t>(in[base + 4], I(base + 4)), at<int32_t>(in[base + 5], I(base + 5)), 0, 0};
+  }
+  // Row widths: per-network element count / rows, rows = that group's cell count + 1.
+  {
+    std::vector<int64_t> rows(a.n_groups, 1);
+    for (int64_t i = 0; i < n; ++i) rows[cell_group[i]] += 1;
+    for (int64_t g = 0; g < a.n_groups; ++g) {
+      const int base = kGroupTables + kTablesPerGroup * g;
+      groups[g].out_width = in[base].per_network / rows[g];
+      groups[g].in_width = in[base + 4].per_network / rows[g];
+    }
+  }
+
+  const int64_t n_slots = a.n_slots;
+  const int64_t n_steps = a.n_steps;
+  const float dt = a.dt_ms;
+  const bool seq = a.sequential != 0;
+
+  // 1. P -> ES input of every P spike in (first_step, first_step + n_steps].
+  {
+    const int64_t last_step = int64_t(first_step) + n_steps;
+    for (int64_t k = 0; k < n_psyn; ++k) {
+      const int32_t pre = p_pre[k];
+      int64_t spike = p_next[pre];
+      if (spike > last_step) continue;
+      float w = p_weight[k] * wgain[a.p_syn_offset + k];
+      if (seq) w = event_load(w, kEAmpa);
+      const int32_t interval = p_interval[pre];
+      while (spike <= last_step) {
+        if (spike > first_step) {
+          const int64_t idx = ((spike + p_delay[k]) % n_slots) * width + p_target[k];
+          ring[idx] += w;
+          ring[idx + n] += p_nmda[k];
+        }
+        if (interval >= kNever) break;
+        spike += interval;
+      }
+    }
+  }
+
+  // Per-step scratch. The step is split into passes the compiler vectorises (noise, decay, threshold test) and
+  // one scalar pass over the cells that received input this step (a few percent of them), where the exponentials
+  // of the jumps are; the result is the same as one pass per cell.
+  std::vector<float> in_buf(4 * n), v_buf(n);
+  std::vector<uint32_t> u_buf(3 * n);
+  std::vector<int32_t> cnt_buf(3 * n);
+  // byte flags, padded to whole 8-byte words (zero) so they can be scanned a word at a time
+  std::vector<uint8_t> spk_buf(n + 8, 0), inp_buf(n + 8, 0);
+  std::vector<int32_t> fired;
+  fired.reserve(n);
+  float* __restrict__ inb = in_buf.data();
+  float* __restrict__ vb = v_buf.data();
+  uint32_t* __restrict__ ub = u_buf.data();
+  int32_t* __restrict__ cb = cnt_buf.data();
+  uint8_t* __restrict__ sb = spk_buf.data();
+  uint8_t* __restrict__ hb = inp_buf.data();
+  for (int64_t t = 0; t < n_steps; ++t) {
+    const int32_t m = first_step + int32_t(t) + 1;
+    const float t_ms = float(m) * dt;
+    // 2a. read and clear the slot
+    float* slot = ring + (int64_t(m) % n_slots) * width;
+    std::memcpy(inb, slot, sizeof(float) * width);
+    std::memset(slot, 0, sizeof(float) * width);
+    // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs
+    noise_counts(3 * n, kmax, hash32(uint32_t(m) * kGolden + step_seed), lane_key, thr, ub, cb);
+    add_noise(n, cb, noise_w, inb);
+    add_noise(2 * n, cb + n, noise_w + n, inb + 2 * n);
+    // 2c. decay, refractory bookkeeping and V (the deviation every driving force of this step uses)
+    decay(n, ampa, d_ampa);
+    decay(n, nmda, d_nmda);
+    decay(n, gprox, d_gprox);
+    decay(n, gdist, d_gdist);
+    decay(n, ahp, d_ahp);
+    refractory(n, since, excess, n_ref, d_rr, d_rr_first);
+    potential(n, ampa, nmda, gprox, gdist, ahp, rmp, vb);
+    // 2d. jumps, only where there is input (a zero input gives a zero jump and leaves every component as it is)
+    has_input(n, inb, hb);
+    for (int64_t i0 = 0; i0 < n; i0 += 8) {
+      uint64_t word;
+      std::memcpy(&word, hb + i0, 8);
+      if (word == 0) continue;
+      for (int64_t i = i0; i < std::min(i0 + 8, n); ++i) {
+      if (!hb[i]) continue;
+      const float ampa_in = inb[i], nmda_in = inb[n + i], gp_in = inb[2 * n + i], gd_in = inb[3 * n + i];
+      const float v = vb[i];
+      float ja, jgp, jgd;
+      if (seq) {
+        ja = ampa_in != 0.0f ? (kEAmpa - v) * -std::expm1(ampa_in * (-1.0f / kEAmpa)) : 0.0f;
+        jgp = gp_in != 0.0f ? (v - kEGaba) * -std::expm1(gp_in * (1.0f / kEGaba)) : 0.0f;
+        jgd = gd_in != 0.0f ? (v - kEGaba) * -std::expm1(gd_in * (1.0f / kEGaba)) : 0.0f;
+      } else {
+        ja = ampa_in * (1.0f - v * (1.0f / kEAmpa));
+        const float gf = 1.0f - v * (1.0f / kEGaba);
+        jgp = gp_in * gf;
+        jgd = gd_in * gf;
+      }
+      if (ampa_in != 0.0f) ampa[i] = std::max(ampa[i] + ja, 0.0f);
+      if (nmda[i] < kENmda && nmda_in != 0.0f) {
+        const float block = 1.0f / (1.0f + std::exp(-kMgSlope * (rmp[i] + v)) * (kMg / kMg0));
+        nmda[i] = nmda[i] + nmda_in * block * (1.0f - v * (1.0f / kENmda));
+      }
+      if (gp_in != 0.0f && gprox[i] > kEGaba) gprox[i] = std::min(gprox[i] - jgp, 0.0f);
+      if (gd_in != 0.0f && gdist[i] > kEGaba) gdist[i] = std::min(gdist[i] - jgd, 0.0f);
+      }
+    }
+    // 2e. threshold test (vectorised), then the spikes' own updates (rare)
+    threshold(n, ampa, nmda, gprox, gdist, ahp, rmp, since, n_ref, vth, excess, vblock, sb);
+    fired.clear();
+    for (int64_t i0 = 0; i0 < n; i0 += 8) {
+      uint64_t word;
+      std::memcpy(&word, sb + i0, 8);
+      if (word == 0) continue;
+      for (int64_t i = i0; i < std::min(i0 + 8, n); ++i) {
+        if (!sb[i]) continue;
+        ahp[i] -= ahpwt[i];
+        excess[i] = post_excess[i];
+        since[i] = 0;
+        fired.push_back(int32_t(i));
+      }
+    }
+    // 2f. spike output, last / previous spike times and counts; P trains
+    bool* out_spk = spikes + t * n_all;
+    std::memset(out_spk, 0, n_all);
+    for (int32_t i : fired) {
+      out_spk[i] = true;
+      prev[i] = last[i];
+      last[i] = t_ms;
+      count[i] += 1;
+    }
+    for (int64_t j = 0; j < n_p; ++j) {
+      if (p_next[j] != m) continue;
+      const int64_t id = p_start + j;
+      out_spk[id] = true;
+      prev[id] = last[id];
+      last[id] = t_ms;
+      count[id] += 1;
+      p_next[j] = p_interval[j] >= kNever ? kNever : p_next[j] + p_interval[j];
+    }
+    // 2g. delivery and tagging of this step's network spikes
+    for (int32_t i : fired) {
+      const Tables& tb = groups[cell_group[i]];
+      const bool exc = a.exc[cell_group[i]] != 0;
+      const float e_rev = exc ? kEAmpa : -kEGaba;
+      const int64_t r = cell_row[i];
+      const int32_t* syn = tb.out_syn + r * tb.out_width;
+      const int32_t* packed = tb.out_packed + r * tb.out_width;
+      const float* wt = tb.out_weight + r * tb.out_width;
+      const float* wn = tb.out_nmda + r * tb.out_width;
+      for (int64_t j = 0; j < tb.out_width; ++j) {
+        if (syn[j] >= n_syn) continue;  // padding (weight 0)
+        float w = wt[j] * wgain[syn[j]];
+        if (seq) w = event_load(w, e_rev);
+        const int32_t delay = packed[j] & ((1 << kDelayBits) - 1);
+        const int64_t idx = ((int64_t(m) + delay) % n_slots) * width + (packed[j] >> kDelayBits);
+        ring[idx] += w;
+        if (exc) ring[idx + n] += wn[j];
+      }
+      if (n_plastic == 0) continue;
+      const int32_t* tag = tb.in_plastic + r * tb.in_width;
+      const int32_t* pre = tb.in_pre + r * tb.in_width;
+      for (int64_t j = 0; j < tb.in_width; ++j) {
+        if (tag[j] >= n_plastic || pre[j] >= n_all) continue;
+        const float l = last[pre[j]] <= t_ms ? last[pre[j]] : prev[pre[j]];
+        if (l >= 0.0f && t_ms - l <= window_ms) pdope[tag[j]] = std::max(pdope[tag[j]], t_ms);
+      }
+    }
+  }
+  *at<int32_t>(out[oStep], flat) = first_step + int32_t(n_steps);
+}
+
+View view_of(const ffi::AnyBuffer& b, int base_rank, int batch_rank) {
+  auto dims = b.dimensions();
+  View v;
+  v.data = static_cast<char*>(b.untyped_data());
+  v.elem = int64_t(ffi::ByteWidth(b.element_type()));
+  v.per_network = 1;
+  for (int64_t d = int64_t(dims.size()) - base_rank; d < int64_t(dims.size()); ++d) v.per_network *= dims[d];
+  for (int d = 0; d < batch_rank; ++d) v.batch_dims.push_back(dims[d]);
+  return v;
+}
+
+ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n_steps, int64_t n_slots,
+                     int64_t p_syn_offset, int64_t sequential, float dt_ms, ffi::Span<const int64_t> excitatory,
+                     int64_t n_threads) {
+  const int64_t n_groups = int64_t(excitatory.size());
+  const int64_t n_in = kGroupTables + kTablesPerGroup * n_groups;
+  if (int64_t(args.size()) != n_in || int64_t(rets.size()) != kNumOut || n_groups > 8)
+    return ffi::Error::InvalidArgument("jaxarm chunk kernel: wrong number of arguments or results");
+  auto step0 = args.get<ffi::AnyBuffer>(0);
+  if (step0.has_error()) return step0.error();
+  const int batch_rank = int(step0->dimensions().size());
+  std::vector<View> in(n_in), out(kNumOut);
+  for (int64_t k = 0; k < n_in; ++k) {
+    auto b = args.get<ffi::AnyBuffer>(k);
+    if (b.has_error()) return b.error();
+    const int base = k < kGroupTables ? kBaseRankFixed[k] : 2;
+    if (int(b->dimensions().size()) != base + batch_rank)
+      return ffi::Error::InvalidArgument("jaxarm chunk kernel: input " + std::to_string(k) + " has rank " +
+                                         std::to_string(b->dimensions().size()) + ", expected " +
+                                         std::to_string(base + batch_rank));
+    in[k] = view_of(*b, base, batch_rank);
+  }
+  std::vector<int64_t> batch(batch_rank, 1);
+  for (const View& v : in)
+    for (int d = 0; d < batch_rank; ++d) batch[d] = std::max(batch[d], v.batch_dims[d]);
+  for (int64_t k = 0; k < kNumOut; ++k) {
+    auto r = rets.get<ffi::AnyBuffer>(k);
+    if (r.has_error()) return r.error();
+    out[k] = view_of(**r, kBaseRankOut[k], batch_rank);
+  }
+  Attrs a{n_steps, n_slots, p_syn_offset, n_groups, sequential, {0}, dt_ms};
+  for (int64_t g = 0; g < n_groups; ++g) a.exc[g] = excitatory[g];
+  int64_t total = 1;
+  for (int64_t b : batch) total *= b;
+
+  auto work = [&](int64_t lo, int64_t hi) {
+    std::vector<int64_t> idx(batch_rank);
+    for (int64_t f = lo; f < hi; ++f) {
+      int64_t rem = f;
+      for (int d = batch_rank - 1; d >= 0; --d) {
+        idx[d] = rem % batch[d];
+        rem /= batch[d];
+      }
+      run_network(in, out, idx, f, a);
+    }
+  };
+  const int64_t threads = std::max<int64_t>(1, std::min(n_threads, total));
+  if (threads == 1) {
+    work(0, total);
+  } else {
+    std::vector<std::thread> pool;
+    for (int64_t t = 0; t < threads; ++t)
+      pool.emplace_back(work, total * t / threads, total * (t + 1) / threads);
+    for (auto& th : pool) th.join();
+  }
+  return ffi::Error::Success();
+}
+
+}  // namespace
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
+                              ffi::Ffi::Bind()
+                                  .RemainingArgs()
+                                  .RemainingRets()
+                                  .Attr<int64_t>("n_steps")
+                                  .Attr<int64_t>("n_slots")
+                                  .Attr<int64_t>("p_syn_offset")
+                                  .Attr<int64_t>("sequential")
+                                  .Attr<float>("dt_ms")
+                                  .Attr<ffi::Span<const int64_t>>("excitatory")
+                                  .Attr<int64_t>("n_threads"));
