@@ -3,7 +3,7 @@
 Modules: :mod:`populations` (sizes, ids, muscle groups), :mod:`wiring` (fixed in-degree wiring in per-post-cell
 layout), :mod:`cell` (the INTF6 port), :mod:`noise` (background Poisson input), :mod:`synapses` (ring-buffer spike
 delivery), :mod:`proprio` (P population code), :mod:`readout` (EM motor readout), :mod:`network` (State, init,
-step, run). Units: ms and mV; muscle lengths in m.
+step, run), :mod:`native` (the compiled CPU chunk kernel). Units: ms and mV; muscle lengths in m.
 """
 from jaxarm.config.network import NetworkConfig
 from jaxarm.network.network import MAX_PLAST_T_MS, Network, NetworkParams, State

@@ -257,14 +257,13 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   // Per-step scratch. The step is split into passes the compiler vectorises (noise, decay, threshold test) and
   // one scalar pass over the cells that received input this step (a few percent of them), where the exponentials
   // of the jumps are; the result is the same as one pass per cell.
-  std::vector<float> in_buf(4 * n), v_buf(n);
+  std::vector<float> v_buf(n);
   std::vector<uint32_t> u_buf(3 * n);
   std::vector<int32_t> cnt_buf(3 * n);
   // byte flags, padded to whole 8-byte words (zero) so they can be scanned a word at a time
   std::vector<uint8_t> spk_buf(n + 8, 0), inp_buf(n + 8, 0);
   std::vector<int32_t> fired;
   fired.reserve(n);
-  float* __restrict__ inb = in_buf.data();
   float* __restrict__ vb = v_buf.data();
   uint32_t* __restrict__ ub = u_buf.data();
   int32_t* __restrict__ cb = cnt_buf.data();
@@ -273,10 +272,10 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   for (int64_t t = 0; t < n_steps; ++t) {
     const int32_t m = first_step + int32_t(t) + 1;
     const float t_ms = float(m) * dt;
-    // 2a. read and clear the slot
-    float* slot = ring + (int64_t(m) % n_slots) * width;
-    std::memcpy(inb, slot, sizeof(float) * width);
-    std::memset(slot, 0, sizeof(float) * width);
+    // 2a. this step's slot of the ring
+    // (used in place as this step's input and cleared at the end of the step: nothing is delivered into it
+    // meanwhile, every delay being at least one step and shorter than the ring)
+    float* __restrict__ inb = ring + (int64_t(m) % n_slots) * width;
     // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs
     noise_counts(3 * n, kmax, hash32(uint32_t(m) * kGolden + step_seed), lane_key, thr, ub, cb);
     add_noise(n, cb, noise_w, inb);
@@ -334,6 +333,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
         fired.push_back(int32_t(i));
       }
     }
+    std::memset(inb, 0, sizeof(float) * width);
     // 2f. spike output, last / previous spike times and counts; P trains
     bool* out_spk = spikes + t * n_all;
     std::memset(out_spk, 0, n_all);
