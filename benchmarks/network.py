@@ -28,6 +28,7 @@ it is absent and those keys are left out.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import resource
@@ -41,7 +42,8 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT_SECONDS = {1: 2.0, 60: 1.0, 300: 0.5}
 
 
-def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, seed: int, warmup: float) -> dict:
+def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, seed: int, warmup: float,
+           kernel: str = "auto", threads: int = 1) -> dict:
     """Time one network count in this process."""
     sys.path.insert(0, REPO)
     import jax
@@ -49,7 +51,9 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
     from experiments.network_rates import make_training_drive
     from jaxarm.network import Network, NetworkConfig
 
-    config = NetworkConfig() if dt_ms is None else NetworkConfig(dt_ms=dt_ms)
+    config = NetworkConfig(kernel=kernel, native_threads=threads)
+    if dt_ms is not None:
+        config = dataclasses.replace(config, dt_ms=dt_ms)
     assert config.plasticity_bookkeeping
     net = Network(config)
     keys = jax.random.split(jax.random.key(seed), 2 * n_networks)
@@ -79,6 +83,7 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
     spikes = np.asarray(state.net.spike_count)
     return {
         "networks": n_networks, "dt_ms": config.dt_ms, "simulated_s": seconds, "repeats": repeats,
+        "kernel": "native" if net.uses_native_kernel else "xla", "native_threads": config.native_threads,
         "warmup_s": warmup,
         "network_s_per_s": n_networks * seconds / float(np.median(walls)),
         "network_s_per_cpu_s": n_networks * seconds / float(np.median(cpus)),
@@ -127,11 +132,15 @@ def main(argv=None) -> int:
                     help="compare with Brian2 C++ standalone (default: when brian2 is installed)")
     b2.add_argument("--no-brian2", dest="brian2", action="store_false", help="skip the Brian2 comparison")
     ap.add_argument("--brian2-seconds", type=float, default=10.0, help="simulated seconds of each Brian2 run")
+    ap.add_argument("--kernel", default="auto", choices=["auto", "native", "xla"],
+                    help="NetworkConfig.kernel (auto: the native CPU kernel when it builds)")
+    ap.add_argument("--threads", type=int, default=1, help="NetworkConfig.native_threads")
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker is not None:
         seconds = args.seconds or DEFAULT_SECONDS.get(args.worker, 1.0)
-        print(json.dumps(worker(args.worker, args.dt, seconds, args.repeats, args.seed, args.warmup)))
+        print(json.dumps(worker(args.worker, args.dt, seconds, args.repeats, args.seed, args.warmup, args.kernel,
+                                args.threads)))
         return 0
 
     installed = brian2_installed()
@@ -144,7 +153,8 @@ def main(argv=None) -> int:
     runs = {}
     for n in counts:
         cmd = [sys.executable, os.path.abspath(__file__), "--worker", str(n), "--repeats", str(args.repeats),
-               "--seed", str(args.seed), "--warmup", str(args.warmup)]
+               "--seed", str(args.seed), "--warmup", str(args.warmup), "--kernel", args.kernel,
+               "--threads", str(args.threads)]
         if args.dt is not None:
             cmd += ["--dt", str(args.dt)]
         if args.seconds is not None:
@@ -165,6 +175,7 @@ def main(argv=None) -> int:
         "compile_s": {str(n): r["compile_s"] for n, r in runs.items()},
         "overflows": sum(r["lost_spikes"] + r["wiring_out_overflow"] for r in runs.values()),
         "extra_passes_per_network_s": {str(n): r["extra_passes_per_network_s"] for n, r in runs.items()},
+        "kernel": any_run["kernel"], "native_threads": any_run["native_threads"],
         "dt_ms": any_run["dt_ms"], "block_steps": any_run["block_steps"], "spike_capacity": any_run["spike_capacity"],
         "cpu_count": os.cpu_count(), "load_average_at_end": os.getloadavg(),
         "brian2": ("compared: benchmarks/brian2_network.py" if compare else

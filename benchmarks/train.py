@@ -18,13 +18,16 @@ import time
 import jax
 
 
-def measure(arm: str, n: int, seconds: float, repeats: int):
+def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto", threads: int = 1):
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
     from jaxarm.train import make_train
 
-    fns = make_train(LoopConfig(arm=arm, task=TaskConfig(epochs=1, epoch_duration_s=seconds)))
+    from jaxarm.config.network import NetworkConfig
+
+    fns = make_train(LoopConfig(arm=arm, task=TaskConfig(epochs=1, epoch_duration_s=seconds),
+                                network=NetworkConfig(kernel=kernel, native_threads=threads)))
     mp = MetaParams.original()
     carry = jax.jit(jax.vmap(fns.init))(jax.random.split(jax.random.PRNGKey(0), n))
     t0 = time.perf_counter()
@@ -45,13 +48,15 @@ def main(argv=None) -> int:
     ap.add_argument("--arm", nargs="+", default=["simple", "musculoskeletal"], choices=["simple", "musculoskeletal"])
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--kernel", default="auto", choices=["auto", "native", "xla"], help="NetworkConfig.kernel")
+    ap.add_argument("--threads", type=int, default=1, help="NetworkConfig.native_threads")
     args = ap.parse_args(argv)
     out = {"network_s_per_s": {}, "compile_s": {},
            "config": vars(args) | {"cpu_count": os.cpu_count(), "machine": platform.machine(), "jax": jax.__version__,
                                    "backend": jax.default_backend()}}
     for arm in args.arm:
         for n in args.networks:
-            rate, comp = measure(arm, n, args.seconds, args.repeats)
+            rate, comp = measure(arm, n, args.seconds, args.repeats, args.kernel, args.threads)
             key = str(n) if len(args.arm) == 1 else f"{arm}_{n}"
             out["network_s_per_s"][key] = round(rate, 2)
             out["compile_s"][key] = round(comp, 1)
