@@ -26,12 +26,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.batching import when_any
 from jaxarm.config.network import NetworkConfig
 from jaxarm.config.validate import ConfigError, check_choice
 from jaxarm.learning import babbling as bab
 from jaxarm.learning import critic as crit
 from jaxarm.learning import stdp
 from jaxarm.learning.metaparams import MetaParams
+from jaxarm.network import noise as noise_mod
 from jaxarm.network import readout as ro
 from jaxarm.network.network import Network, NetworkParams
 from jaxarm.network.populations import Populations
@@ -146,6 +148,26 @@ class ClosedLoop:
                          err_hist_m=jnp.stack([err0, err0]), last_rl_ms=jnp.zeros((), jnp.float32),
                          last_scaling_ms=jnp.zeros((), jnp.float32))
 
+    def _reinforce(self, x, aux):
+        """One critic signal applied to every plastic synapse with a live tag (spec §4). x = (wgain, pdope_ms)."""
+        (wgain, pdope), (mp, t_ms, signal) = x, aux
+        n_plastic = self.net.layout.n_plastic
+        maxw = jnp.where(self.plastic_tables, mp.plast_ee_maxw, mp.plast_ei_maxw)
+        w_plastic, pdope = stdp.dopamine_update(wgain[:n_plastic], pdope, True, maxw, mp.learn_rate, t_ms, signal,
+                                                mp.max_elig_tr_dur_ms, config=self.config.eligibility)
+        return wgain.at[:n_plastic].set(w_plastic), pdope
+
+    def _scale(self, wgain, _):
+        """Global synaptic scaling (spec §4): if the weighted total S grew beyond the initial S0, every gain is
+        multiplied by S0/S. Two dot products: the original's per-cell bookkeeping only excludes cells whose outgoing
+        gains are all exactly 0, which soft-bounded multiplicative updates never reach."""
+        base, s0 = self.scaling_tables
+        factor = s0 / jnp.maximum(jnp.dot(base, wgain), 1e-12)
+        return jnp.where((base > 0) & (factor < 1.0), wgain * factor, wgain)  # P->ES inputs are not INTF6 synapses
+
+    def _set_em_rates(self, noise, rates_hz):
+        return noise_mod.set_em_rates(self.config.network, noise, rates_hz)
+
     def _move_arm(self, arm_state, u):
         def body(s, _):
             return self.arm.step(s, u), None
@@ -171,25 +193,16 @@ class ClosedLoop:
             due = crit.rl_update_due(t_ms, state.last_rl_ms, mp.rl_dt_ms)
             signal = jnp.where(due, crit.critic_signal(state.err_hist_m[0], state.err_hist_m[1]), 0.0)
             if c.plasticity:
-                n_plastic = self.net.layout.n_plastic
-                is_ee = self.plastic_tables
-                maxw = jnp.where(is_ee, mp.plast_ee_maxw, mp.plast_ei_maxw)
-                w_plastic, pdope = stdp.dopamine_update(
-                    net.wgain[:n_plastic], net.pdope_ms, True, maxw, mp.learn_rate, t_ms, signal,
-                    mp.max_elig_tr_dur_ms, config=c.eligibility)
-                net = net._replace(wgain=net.wgain.at[:n_plastic].set(w_plastic), pdope_ms=pdope)
-                # Global synaptic scaling (spec §4): if the weighted total S grew beyond the initial S0, every gain
-                # is multiplied by S0/S. Two dot products: the original's per-cell bookkeeping only excludes cells
-                # whose outgoing gains are all exactly 0, which soft-bounded multiplicative updates never reach.
-                base, s0 = self.scaling_tables
-                factor = s0 / jnp.maximum(jnp.dot(base, net.wgain), 1e-12)
+                # The updates are due at the critic's and the scaling's moments only; when_any skips them in
+                # every interval where no network of a batch needs them (same result as computing and masking).
+                wgain, pdope = when_any(signal != 0, self._reinforce, (net.wgain, net.pdope_ms), (mp, t_ms, signal))
                 scale_due = (t_ms - state.last_scaling_ms) >= mp.syn_scaling_dt_ms
-                scaled = jnp.where(base > 0, net.wgain * factor, net.wgain)  # P->ES inputs are not INTF6 synapses
-                net = net._replace(wgain=jnp.where(scale_due & (factor < 1.0), scaled, net.wgain))
+                wgain = when_any(scale_due, self._scale, wgain)
+                net = net._replace(wgain=wgain, pdope_ms=pdope)
                 last_scaling = jnp.where(scale_due, t_ms, state.last_scaling_ms)
             new_babble, rates = bab.babble(key, state.babble, t_ms, mp, config=c.babbling)
             babble = jax.tree_util.tree_map(lambda a, b: jnp.where(due, a, b), new_babble, state.babble)
-            net = self.net.set_em_rates(net, jnp.where(due, rates, state.babble.rates_hz))
+            net = net._replace(noise=when_any(due, self._set_em_rates, net.noise, rates))
             last_rl = jnp.where(due, t_ms, state.last_rl_ms)
         state = LoopState(net=net, arm=arm_state, readout=readout, babble=babble,
                           err_hist_m=jnp.stack([state.err_hist_m[1], err]), last_rl_ms=last_rl,
