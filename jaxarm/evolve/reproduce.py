@@ -60,7 +60,24 @@ def _finished(run) -> dict | None:
 
     res = json.loads(path.read_text())
     want = json.loads(json.dumps({"loop": _jsonable(asdict(run.config)), **run.meta()}))
-    return res if res.get("config") == want else None
+    return res if _comparable(res.get("config")) == _comparable(want) else None
+
+
+#: NetworkConfig fields that choose how, not what, is computed: a folder finished with other values is reused (the
+#: two kernels agree to float rounding, tests/test_native_kernel.py; threads never change results). Folders written
+#: before these fields existed lack them.
+_HOW_FIELDS = ("kernel", "native_threads")
+
+
+def _comparable(config):
+    if not isinstance(config, dict):
+        return config
+    config = json.loads(json.dumps(config))
+    net = config.get("loop", {}).get("network")
+    if isinstance(net, dict):
+        for k in _HOW_FIELDS:
+            net.pop(k, None)
+    return config
 
 
 def _run_one(run, progress: bool, stop_after: int | None, log):
