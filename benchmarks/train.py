@@ -18,7 +18,7 @@ import time
 import jax
 
 
-def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto", threads: int = 1):
+def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto", threads: int | None = None):
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
@@ -27,7 +27,8 @@ def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto"
     from jaxarm.config.network import NetworkConfig
 
     fns = make_train(LoopConfig(arm=arm, task=TaskConfig(epochs=1, epoch_duration_s=seconds),
-                                network=NetworkConfig(kernel=kernel, native_threads=threads)))
+                                network=NetworkConfig(kernel=kernel) if threads is None else
+                                NetworkConfig(kernel=kernel, native_threads=threads)))
     mp = MetaParams.original()
     carry = jax.jit(jax.vmap(fns.init))(jax.random.split(jax.random.PRNGKey(0), n))
     t0 = time.perf_counter()
@@ -49,8 +50,13 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--kernel", default="auto", choices=["auto", "native", "xla"], help="NetworkConfig.kernel")
-    ap.add_argument("--threads", type=int, default=1, help="NetworkConfig.native_threads")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="NetworkConfig.native_threads (default: $JAXARM_NATIVE_THREADS, else 1)")
     args = ap.parse_args(argv)
+    from jaxarm.config.network import NetworkConfig
+
+    if args.threads is None:
+        args.threads = NetworkConfig().native_threads
     out = {"network_s_per_s": {}, "compile_s": {},
            "config": vars(args) | {"cpu_count": os.cpu_count(), "machine": platform.machine(), "jax": jax.__version__,
                                    "backend": jax.default_backend()}}
