@@ -14,7 +14,7 @@ import pytest
 from jaxarm.config import ConfigError
 from jaxarm.network import Network, NetworkConfig, NetworkParams, native
 
-pytestmark = pytest.mark.skipif(not native.available(), reason=f"native kernel unavailable: {native.status()}")
+needs_native = pytest.mark.skipif(not native.available(), reason=f"native kernel unavailable: {native.status()}")
 
 LENGTHS = jnp.array([0.10, 0.16, 0.12, 0.14])
 PARAMS = NetworkParams.original()
@@ -40,6 +40,7 @@ def assert_states_close(a, b):
     np.testing.assert_allclose(np.asarray(a.ring), np.asarray(b.ring), rtol=1e-4, atol=2e-4)
 
 
+@needs_native
 @pytest.mark.parametrize("summation", ["sequential", "linear"])
 def test_batched_run_matches_xla(summation):
     """8 networks, own wiring each, 250 ms from rest (the start-of-run P volley included)."""
@@ -57,6 +58,7 @@ def test_batched_run_matches_xla(summation):
     assert int(np.sum(sn.counters.lost_spikes)) == 0
 
 
+@needs_native
 def test_shared_wiring_nested_vmap_and_unbatched_state():
     nx, nn = pair()
     w = nx.make_wiring(jax.random.key(0))
@@ -76,6 +78,7 @@ def test_shared_wiring_nested_vmap_and_unbatched_state():
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+@needs_native
 def test_paths_can_hand_a_state_over_mid_run():
     """The state layout is shared: 100 ms native then 100 ms XLA equals 200 ms XLA."""
     nx, nn = pair()
@@ -88,6 +91,7 @@ def test_paths_can_hand_a_state_over_mid_run():
     assert_states_close(end, ref_state)
 
 
+@needs_native
 def test_single_step_and_no_bookkeeping():
     nx, nn = pair(plasticity_bookkeeping=False)
     w = nx.make_wiring(jax.random.key(7))
@@ -102,6 +106,7 @@ def test_single_step_and_no_bookkeeping():
     assert_states_close(sx, sn)
 
 
+@needs_native
 def test_threads_give_the_same_result():
     _, nn = pair()
     nt = Network(dataclasses.replace(nn.config, native_threads=3))
@@ -119,3 +124,11 @@ def test_config_validation():
         NetworkConfig(kernel="fast")
     with pytest.raises(ConfigError, match="native_threads"):
         NetworkConfig(native_threads=0)
+
+
+def test_auto_falls_back_to_xla_and_native_says_why(monkeypatch):
+    monkeypatch.setattr(native, "_register", lambda: (False, "no C++ compiler found (set $CXX)"))
+    assert not native.available()
+    assert not Network(NetworkConfig(kernel="auto")).uses_native_kernel
+    with pytest.raises(RuntimeError, match="no C.. compiler"):
+        Network(NetworkConfig(kernel="native")).uses_native_kernel

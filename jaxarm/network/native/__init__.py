@@ -76,11 +76,20 @@ def _build() -> tuple[str | None, str]:
     with open(SOURCE, "rb") as f:
         src = f.read()
     key = hashlib.sha256(src + repr((jaxlib.__version__, CXX_FLAGS, cxx, _cpu_signature())).encode()).hexdigest()[:16]
-    path = os.path.join(cache_dir(), f"chunk_kernel-{key}.so")
+    folder = cache_dir()
+    path = os.path.join(folder, f"chunk_kernel-{key}.so")
     if os.path.exists(path):
         return path, "cached"
-    os.makedirs(cache_dir(), exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".so", dir=cache_dir())
+    try:
+        os.makedirs(folder, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".so", dir=folder)
+    except OSError:  # an unwritable home: build into the temporary folder instead
+        folder = os.path.join(tempfile.gettempdir(), "jaxarm-native")
+        os.makedirs(folder, exist_ok=True)
+        path = os.path.join(folder, f"chunk_kernel-{key}.so")
+        if os.path.exists(path):
+            return path, "cached"
+        fd, tmp = tempfile.mkstemp(suffix=".so", dir=folder)
     os.close(fd)
     cmd = [cxx, *CXX_FLAGS, "-w", "-I", jax.ffi.include_dir(), SOURCE, "-o", tmp]
     try:
