@@ -358,6 +358,30 @@ def test_registry_builds_and_lists():
     assert float(fit.make_quadratic(0.0)(KEY, opt)[0]) == pytest.approx(0.0, abs=1e-10)
 
 
+def test_extended_search_equals_one_planned_that_long(tmp_path):
+    """Asking a finished (or stopped) search for more generations continues it; the result equals a search
+    planned that long from the start, bit for bit. Fewer generations than done is refused."""
+    space = SearchSpace.make(freeze=["epochs", "explore_tot"])
+    make = lambda g: EvolveConfig(strategy="CMA_ES", population_size=6, generations=g, chunk_size=3,   # noqa: E731
+                                  seeds_per_candidate=2, top_k=5)
+    fitness = fit.Fitness(fit.make_quadratic(0.01))
+    meta = {"name": "quadratic"}
+    quiet = lambda line: None   # noqa: E731
+    full = run_search(fitness, space, make(7), tmp_path / "full", fitness_meta=meta, log=quiet)
+    short = run_search(fitness, space, make(4), tmp_path / "ext", fitness_meta=meta, log=quiet)
+    assert short.finished and int(short.state.generation) == 4
+    assert short.state.history.best.shape == (4,)
+    lines = []
+    extended = run_search(fitness, space, make(7), tmp_path / "ext", fitness_meta=meta, log=lines.append)
+    assert any("generation 4/7 (extended from 4 generations)" in line for line in lines)
+    assert extended.finished and int(extended.state.generation) == 7
+    assert leaves_equal(full.state, extended.state)
+    assert (json.loads((tmp_path / "full" / HISTORY_FILE).read_text())["history"]
+            == json.loads((tmp_path / "ext" / HISTORY_FILE).read_text())["history"])
+    with pytest.raises(ConfigError, match="generations = 5 is fewer than the 7"):
+        run_search(fitness, space, make(5), tmp_path / "ext", fitness_meta=meta, log=quiet)
+
+
 def test_cli_runs_resumes_and_reports_errors(tmp_path, capsys):
     args = ["--fitness", "quadratic-diverging", "--strategy", "SimpleGA", "--population", "6", "--generations", "4",
             "--chunk", "2", "--seeds-per-candidate", "2", "--search", "learn_rate,v_em_max", "--sigma", "0.4",

@@ -28,7 +28,8 @@ import numpy as np
 from jaxarm.config.validate import ConfigError
 from jaxarm.evolve.checkpoint import SearchCheckpointer
 from jaxarm.evolve.fitness import Fitness
-from jaxarm.evolve.search import RERANK_STREAM, EvolveConfig, SearchState, make_reevaluate, make_search
+from jaxarm.evolve.search import (RERANK_STREAM, EvolveConfig, SearchState, make_reevaluate, make_search,
+                                  with_generations)
 from jaxarm.evolve.space import SearchSpace
 
 HISTORY_FILE = "history.json"
@@ -57,6 +58,13 @@ def _write_json(path: Path, obj) -> None:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(json.dumps(obj, indent=1, allow_nan=False) + "\n")
     tmp.replace(path)   # a reader never sees half a file
+
+
+def _without_generations(description: dict) -> dict:
+    """A run description minus the planned number of generations (which a resumed run may change)."""
+    d = dict(description)
+    d["config"] = {k: v for k, v in dict(d.get("config", {})).items() if k != "generations"}
+    return d
 
 
 def describe(space: SearchSpace, config: EvolveConfig, fitness_meta: dict | None) -> dict:
@@ -160,13 +168,24 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
         costs = {"compile_s": 0.0, "run_s": 0.0, "evaluations": 0}
         if ckpt.latest_generation() is not None:
             saved = ckpt.read_meta()
-            if saved.get("run") != description:
-                diff = [k for k in description if saved.get("run", {}).get(k) != description[k]]
+            saved_run = saved.get("run", {})
+            # The planned number of generations is not part of a search's identity: asking for more extends it.
+            saved_g = saved_run.get("config", {}).get("generations", G)
+            if _without_generations(saved_run) != _without_generations(description):
+                diff = [k for k in description
+                        if _without_generations(saved_run).get(k) != _without_generations(description)[k]]
                 raise ConfigError(f"{out} holds a checkpoint of a different search (differs in: {', '.join(diff)}); "
-                                  f"use another output folder or the same options")
-            state, meta = ckpt.restore(jax.eval_shape(search.init, key))
+                                  f"use another output folder or the same options (only --generations may change)")
+            abstract = jax.eval_shape(lambda k: with_generations(search.init(k), saved_g), key)
+            state, meta = ckpt.restore(abstract)
+            done = int(state.generation)
+            if done > G:
+                raise ConfigError(f"generations = {G} is fewer than the {done} this search in {out} has done; "
+                                  f"ask for at least {done}")
+            state = with_generations(state, G)
             costs = meta.get("costs", costs)
-            log(f"resuming from the checkpoint at generation {int(state.generation)}/{G} in {ckpt.directory}")
+            extended = f" (extended from {saved_g} generations)" if saved_g != G else ""
+            log(f"resuming from the checkpoint at generation {done}/{G}{extended} in {ckpt.directory}")
         else:
             state = search.init(key)
 

@@ -209,6 +209,30 @@ class Search(NamedTuple):
     metric_names: tuple       # names of the fitness's reported metrics
 
 
+def with_generations(state: SearchState, generations: int) -> SearchState:
+    """``state`` with its per-generation history resized to ``generations`` entries (new entries empty: NaN / -1).
+
+    Extending a search (asking for more generations than it was started with) changes nothing else: the strategy
+    state, key and archive do not depend on the planned length, so an extended search continues exactly as one
+    planned that long from the start. Works on abstract states (``jax.eval_shape``) too."""
+    h = state.history
+
+    def fit(a, fill):
+        g = a.shape[0]
+        if g >= generations:
+            return a[:generations]
+        pad = jnp.full((generations - g,) + tuple(a.shape[1:]), fill, a.dtype)
+        return jnp.concatenate([a, pad])
+
+    history = History(best=fit(h.best, jnp.nan), median=fit(h.median, jnp.nan),
+                      best_so_far=fit(h.best_so_far, jnp.nan),
+                      nonfinite_evals=fit(h.nonfinite_evals, -1), nonfinite_candidates=fit(h.nonfinite_candidates, -1),
+                      best_unit=fit(h.best_unit, jnp.nan),
+                      metrics_best={m: fit(v, jnp.nan) for m, v in h.metrics_best.items()},
+                      metrics_mean={m: fit(v, jnp.nan) for m, v in h.metrics_mean.items()})
+    return state.replace(history=history)
+
+
 def raw_key(key) -> jnp.ndarray:
     """A raw ``uint32[2]`` key from a raw or typed PRNG key."""
     key = jnp.asarray(key)
