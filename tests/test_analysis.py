@@ -181,3 +181,52 @@ def test_mean_sd_ignores_nan_and_masked_entries():
     assert mean_sd([1.0, 3.0, 5.0], mask=[True, False, True])["mean"] == 3.0
     empty = mean_sd([], None)
     assert math.isnan(empty["mean"]) and empty["n"] == 0
+
+
+# ------------------------------------------------------------------------------ experiments/reach_stats.py
+def _fake_run(folder, arm, target, hands, naive_hands, successes):
+    """A run folder as `jaxarm train` writes it, with only what reach_stats reads."""
+    import json
+
+    from jaxarm.analysis.reach import reach_metrics
+
+    folder.mkdir(parents=True)
+    tgt = np.array([0.0, 0.0], np.float32)
+    nets = []
+    for i, xy in enumerate(hands):
+        m = reach_metrics(jnp.asarray(xy), jnp.asarray(tgt), 0.01)
+        nets.append({k: (bool(v) if k == "success" else float(v)) for k, v in m._asdict().items()} | {"seed": i})
+        assert nets[-1]["success"] == successes[i]
+    naive = [{"min_distance_m": float(np.min(np.linalg.norm(xy - tgt, axis=-1)))} for xy in naive_hands]
+    res = {"target": target, "networks": nets, "naive": {"success_count": 0, "networks": naive},
+           "config": {"arm": arm}}
+    (folder / "results.json").write_text(json.dumps(res))
+    np.savez(folder / "trajectories.npz", t=np.arange(101) * 0.01, hand=np.stack(hands),
+             naive_hand=np.stack(naive_hands))
+
+
+def test_reach_stats_experiment_reports_successful_networks_beside_the_paper(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "reach_stats", Path(__file__).resolve().parents[1] / "experiments" / "reach_stats.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    t = np.linspace(0.0, 1.0, 101)[:, None]
+    start = np.array([0.15, 0.0])
+    reach = start * (1 - np.clip(t / 0.5, 0, 1))             # straight in at 0.3 m/s, then stays at the target
+    stay = np.repeat(start[None], 101, axis=0) + 1e-4 * t   # barely moves
+    _fake_run(tmp_path / "r" / "left" / "seeds", "musculoskeletal", "left", [reach, stay], [stay, stay], [True, False])
+    _fake_run(tmp_path / "r" / "bottom" / "seeds", "musculoskeletal", "bottom", [stay, stay], [stay, stay],
+              [False, False])
+    folders = mod.run_folders([tmp_path / "r"])
+    assert [f.parent.name for f in folders] == ["left", "bottom"]
+    left, bottom = (mod.target_stats(f) for f in folders)
+    assert (left["success_count"], bottom["success_count"]) == (1, 0)
+    # only the successful network enters the paper's metrics: it entered the 4 cm circle at 0.37 s, moving 0.3 m/s
+    assert left["speed_before_m_s"]["n"] == 1 and left["speed_before_m_s"]["mean"] == pytest.approx(0.3, rel=0.05)
+    assert left["time_inside_s"]["mean"] == pytest.approx(640.0, abs=20.0)   # ms
+    assert bottom["speed_before_m_s"]["n"] == 0
+    table = mod.markdown([left, bottom])
+    assert "1/2 (0/2) / 29/30" in table and "0/2 (0/2) / 26/30" in table and "0.327 (0.051)" in table
