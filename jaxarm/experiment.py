@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.analysis.reach import reach_metrics
+from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, LoopConfig
 from jaxarm.network.wiring import PATHWAYS
@@ -281,15 +282,19 @@ def train_main(argv: list[str] | None = None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_common(ap)
     ap.add_argument("--out", type=Path, required=True, help="output folder (a rerun resumes from its checkpoints)")
+    ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
+                    help="train and test with this metaparameter changed from the authors' value (repeatable; "
+                         "e.g. v_em_max=60); the training length is --epochs")
     args = ap.parse_args(argv)
     _check(ap, args)
-    from jaxarm.config.validate import ConfigError
-
     try:
         configs = _configs(args)
+        overrides = _parse_overrides(args.overrides)
+        if "epochs" in overrides:
+            raise ConfigError("--set epochs: use --epochs for the training length")
     except ConfigError as e:
         ap.error(str(e))
-    mp = MetaParams.original()
+    mp = MetaParams.original().replace(**{k: jnp.float32(v) for k, v in overrides.items()})
     summary = {}
     for target, cfg in configs:
         out = args.out / target if len(configs) > 1 else args.out
@@ -307,12 +312,40 @@ def train_main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _parse_overrides(items: list[str]) -> dict[str, float]:
+    """``["name=value", ...]`` -> ``{name: value}``, each a known metaparameter within its bounds."""
+    from jaxarm.learning.metaparams import BOUNDS
+
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or name not in BOUNDS:
+            raise ConfigError(f"--set {item!r}: expected NAME=VALUE with NAME one of {', '.join(BOUNDS)}")
+        try:
+            v = float(value)
+        except ValueError:
+            raise ConfigError(f"--set {item!r}: {value!r} is not a number") from None
+        b = BOUNDS[name]
+        if not (b.lo <= v <= b.hi):
+            raise ConfigError(f"--set {name} = {v:g} is outside its range [{b.lo:g}, {b.hi:g}] {b.unit}")
+        out[name] = v
+    return out
+
+
 def test_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="jaxarm test", description="Re-test networks trained by `jaxarm train`.")
     ap.add_argument("--from", dest="src", type=Path, required=True, help="a `jaxarm train` output folder")
     ap.add_argument("--test-s", type=float, default=None, help="test duration, s (default: as trained)")
     ap.add_argument("--out", type=Path, default=None, help="where to write (default: SRC/test)")
+    ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
+                    help="test with this metaparameter changed (repeatable; e.g. v_em_max=60 or "
+                         "em_noise_rate_test_hz=150); the trained weights are kept")
     args = ap.parse_args(argv)
+    try:
+        overrides = _parse_overrides(args.overrides)
+    except ConfigError as e:
+        ap.error(str(e))
     from jaxarm.checkpoint import Checkpointer
 
     with Checkpointer(args.src / "checkpoints") as ckpt:
@@ -333,6 +366,8 @@ def test_main(argv: list[str] | None = None) -> int:
     init = run.init_fn(network_keys(run.seed, run.n))
     with Checkpointer(args.src / "checkpoints") as ckpt:
         (carry, history), _ = ckpt.restore((init, run.empty_history(init)))
+    if overrides:   # after the restore: the checkpoint was written with the trained metaparameters
+        run.mp = run.mp.replace(**{k: jnp.full_like(getattr(run.mp, k), v) for k, v in overrides.items()})
     res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, 0.0, 0)
     print(f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
     return 0

@@ -74,19 +74,30 @@ def test_train_command_resumes_bit_for_bit(tmp_path):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
-def test_train_cli_writes_results(tmp_path):
+def test_train_cli_writes_results(tmp_path, capsys):
     from jaxarm.cli import main
 
     out = tmp_path / "run"
     assert main(["train", "--networks", "2", "--epochs", "1", "--epoch-s", "0.3", "--test-s", "0.3",
-                 "--out", str(out), "--no-progress"]) == 0
+                 "--set", "v_em_max=60", "--out", str(out), "--no-progress"]) == 0
     res = json.loads((out / "results.json").read_text())
+    assert res["config"]["metaparams"]["v_em_max"] == 60.0
+    assert res["config"]["metaparams"]["learn_rate"] == pytest.approx(0.04)   # the rest: the authors' values
     assert res["n_networks"] == 2 and len(res["networks"]) == 2
     assert {"seed", "success", "min_distance_m", "final_distance_m", "time_inside_s"} <= set(res["networks"][0])
     assert res["success_count"] == sum(n["success"] for n in res["networks"])
     traj = np.load(out / "trajectories.npz")
     assert traj["q"].shape == (2, 31, 2) and traj["t"][-1] == pytest.approx(0.3)
     assert (out / "reach.png").stat().st_size > 0
+    # re-test the trained networks with another readout gain: same weights, other metaparameter
+    assert main(["test", "--from", str(out), "--set", "v_em_max=30", "--out", str(tmp_path / "t30")]) == 0
+    t30 = json.loads((tmp_path / "t30" / "results.json").read_text())
+    assert t30["config"]["metaparams"]["v_em_max"] == 30.0
+    for bad, msg in ((["--set", "v_em_max=5"], "outside its range"), (["--set", "nope=1"], "expected NAME=VALUE"),
+                     (["--set", "epochs=3"], "use --epochs")):
+        with pytest.raises(SystemExit):
+            main(["train", "--out", str(tmp_path / "bad")] + bad)
+        assert msg in capsys.readouterr().err
 
 
 def test_loop_config_errors_name_the_field():
