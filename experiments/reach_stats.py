@@ -5,13 +5,7 @@
 
 Each argument is a ``jaxarm train`` / ``jaxarm reproduce`` output: a folder holding ``results.json`` and
 ``trajectories.npz`` (one target), or a ``reproduce`` folder (its ``<target>/seeds`` sub-folders are used).
-
-Per target: successes out of N (trained and naive), median closest approach, and over the **successful** trained
-networks (as the paper averaged "across successful trajectories") the mean (SD) speed before and after the first
-entry into the 4 cm circle, the distance to the target after it, and the time inside it; then the mean dimensionless
-jerk of all trained and all naive test paths (``jaxarm.analysis.dimensionless_jerk``, 1 s at 10 ms, path-length
-speed). Metric conventions: ``jaxarm.analysis.reach``. The paper's values are from its text
-(``../shared/spec/reference_values.md``, musculoskeletal arm; jerk also for the simple arm).
+What is computed, and the paper's values: :mod:`jaxarm.analysis.paper`.
 """
 from __future__ import annotations
 
@@ -19,103 +13,7 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
-from jaxarm.analysis.jerk import dimensionless_jerk
-from jaxarm.analysis.stats import mean_sd
-
-#: The paper's values, musculoskeletal arm (§3.2): metric -> {target: (mean, sd)}; units as in the row labels.
-PAPER_MS = {
-    "speed_before_m_s": {"left": (0.327, 0.051), "bottom": (0.208, 0.039)},
-    "speed_after_m_s": {"left": (0.167, 0.030), "bottom": (0.184, 0.049)},
-    "distance_after_cm": {"left": (3.87, 0.78), "bottom": (3.20, 0.69)},
-    "time_inside_ms": {"left": (295.0, 12.0), "bottom": (202.0, 10.0)},
-}
-#: The paper's mean dimensionless jerk (Fig. 7; both targets together): arm -> (trained, naive).
-PAPER_JERK = {"musculoskeletal": (0.76, 1.72), "simple": (28.1, None)}
-PAPER_SUCCESS = {"musculoskeletal": {"left": 29, "bottom": 26}, "simple": {"left": 28, "bottom": 27}}
-
-ROWS = (("speed_before_m_s", "speed before first entry, m/s", 1.0),
-        ("speed_after_m_s", "speed after first entry, m/s", 1.0),
-        ("distance_after_m", "distance to target after entry, cm", 100.0),
-        ("time_inside_s", "time inside the circle, ms", 1000.0))
-PAPER_KEY = {"speed_before_m_s": "speed_before_m_s", "speed_after_m_s": "speed_after_m_s",
-             "distance_after_m": "distance_after_cm", "time_inside_s": "time_inside_ms"}
-
-
-def run_folders(paths) -> list[Path]:
-    out = []
-    for p in map(Path, paths):
-        if (p / "results.json").exists():
-            out.append(p)
-        else:
-            order = {"left": 0, "bottom": 1}
-            found = sorted(p.glob("*/seeds/results.json"), key=lambda f: (order.get(f.parent.parent.name, 9), str(f)))
-            if not found:
-                raise SystemExit(f"{p}: no results.json here nor in {p}/<target>/seeds/")
-            out.extend(f.parent for f in found)
-    return out
-
-
-def target_stats(folder: Path) -> dict:
-    res = json.loads((folder / "results.json").read_text())
-    traj = np.load(folder / "trajectories.npz")
-    dt = float(np.median(np.diff(traj["t"])))
-    nets = res["networks"]
-    success = np.array([n["success"] for n in nets], bool)
-    out = {"folder": str(folder), "arm": res["config"]["arm"], "target": res["target"], "n": len(nets),
-           "success_count": int(success.sum()), "naive_success_count": int(res["naive"]["success_count"]),
-           "closest_median_cm": 100 * float(np.median([n["min_distance_m"] for n in nets])),
-           "naive_closest_median_cm": 100 * float(np.median([n["min_distance_m"] for n in res["naive"]["networks"]]))}
-    for key, _, scale in ROWS:
-        s = mean_sd(np.array([n[key] for n in nets], float) * scale, success)
-        out[key] = s
-    jt = np.asarray(dimensionless_jerk(traj["hand"], dt))
-    jn = np.asarray(dimensionless_jerk(traj["naive_hand"], dt))
-    out["jerk_trained"] = mean_sd(jt)
-    out["jerk_naive"] = mean_sd(jn)
-    out["jerk_trained_successful"] = mean_sd(jt, success)
-    return out
-
-
-def fmt(s: dict, digits: int = 3) -> str:
-    if s["n"] == 0 or not np.isfinite(s["mean"]):
-        return "–"
-    sd = f" ({s['sd']:.{digits}g})" if np.isfinite(s["sd"]) else ""
-    return f"{s['mean']:.{digits}g}{sd}"
-
-
-def markdown(stats: list[dict]) -> str:
-    head = "| quantity | " + " | ".join(f"{s['arm']} {s['target']}: jaxarm / paper" for s in stats) + " |"
-    lines = [head, "|---|" + "---|" * len(stats)]
-
-    def row(label, cells):
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
-
-    row("networks reaching (naive)", [
-        f"{s['success_count']}/{s['n']} ({s['naive_success_count']}/{s['n']}) / "
-        f"{PAPER_SUCCESS.get(s['arm'], {}).get(s['target'], '–')}/30" for s in stats])
-    row("closest approach, median cm (naive)",
-        [f"{s['closest_median_cm']:.1f} ({s['naive_closest_median_cm']:.1f}) / –" for s in stats])
-    for key, label, _ in ROWS:
-        cells = []
-        for s in stats:
-            p = PAPER_MS.get(PAPER_KEY[key], {}).get(s["target"]) if s["arm"] == "musculoskeletal" else None
-            cells.append(f"{fmt(s[key])} / " + (f"{p[0]:g} ({p[1]:g})" if p else "–"))
-        row(label + " (successful networks)", cells)
-    for which, idx in (("trained", 0), ("naive", 1)):
-        cells = []
-        for s in stats:
-            p = PAPER_JERK.get(s["arm"], (None, None))[idx]
-            cells.append(f"{fmt(s['jerk_' + which])} / " + (f"{p:g}" if p is not None else "–"))
-        row(f"dimensionless jerk, {which}, all networks", cells)
-    cells = []
-    for s in stats:
-        p = PAPER_JERK.get(s["arm"], (None, None))
-        ours = s["jerk_trained"]["mean"] / s["jerk_naive"]["mean"]
-        cells.append(f"{ours:.2f} / " + (f"{p[0] / p[1]:.2f}" if p[1] else "–"))
-    row("jerk ratio trained / naive", cells)
-    return "\n".join(lines)
+from jaxarm.analysis.paper import markdown, run_folders, target_stats
 
 
 def main(argv=None) -> None:
@@ -124,7 +22,10 @@ def main(argv=None) -> None:
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
     ap.add_argument("--json", type=Path, help="write the statistics as JSON here")
     args = ap.parse_args(argv)
-    stats = [target_stats(f) for f in run_folders(args.runs)]
+    try:
+        stats = [target_stats(f) for f in run_folders(args.runs)]
+    except FileNotFoundError as e:
+        raise SystemExit(str(e)) from None
     if args.json:
         args.json.write_text(json.dumps(stats, indent=1) + "\n")
     if args.markdown:

@@ -183,7 +183,7 @@ def test_mean_sd_ignores_nan_and_masked_entries():
     assert math.isnan(empty["mean"]) and empty["n"] == 0
 
 
-# ------------------------------------------------------------------------------ experiments/reach_stats.py
+# ------------------------------------------------------------------------------ jaxarm.analysis.paper
 def _fake_run(folder, arm, target, hands, naive_hands, successes):
     """A run folder as `jaxarm train` writes it, with only what reach_stats reads."""
     import json
@@ -205,14 +205,9 @@ def _fake_run(folder, arm, target, hands, naive_hands, successes):
              naive_hand=np.stack(naive_hands))
 
 
-def test_reach_stats_experiment_reports_successful_networks_beside_the_paper(tmp_path):
-    import importlib.util
-    from pathlib import Path
+def test_paper_stats_report_successful_networks_beside_the_paper(tmp_path):
+    from jaxarm.analysis import paper as mod
 
-    spec = importlib.util.spec_from_file_location(
-        "reach_stats", Path(__file__).resolve().parents[1] / "experiments" / "reach_stats.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
     t = np.linspace(0.0, 1.0, 101)[:, None]
     start = np.array([0.15, 0.0])
     reach = start * (1 - np.clip(t / 0.5, 0, 1))             # straight in at 0.3 m/s, then stays at the target
@@ -230,3 +225,5 @@ def test_reach_stats_experiment_reports_successful_networks_beside_the_paper(tmp
     assert bottom["speed_before_m_s"]["n"] == 0
     table = mod.markdown([left, bottom])
     assert "1/2 (0/2) / 29/30" in table and "0/2 (0/2) / 26/30" in table and "0.327 (0.051)" in table
+    with pytest.raises(FileNotFoundError, match="no results.json"):
+        mod.run_folders([tmp_path])
