@@ -124,3 +124,21 @@ def test_reaching_fitness_is_registered_and_finite():
     c_value, c_metrics = jax.jit(closest.fn)(jax.random.PRNGKey(0), MetaParams.original())
     assert 0.0 < float(c_value) <= float(value) and float(c_value) <= 0.152
     assert float(c_metrics["success_rate"]) == float(metrics["success_rate"])
+    # the count-aligned variant: closest approach minus (4 cm - 1 cm margin), floored at 0, averaged over targets
+    from jaxarm.evolve.reaching import SHORTFALL_MARGIN_M
+    short = fitness.build("reaching-shortfall", fitness.FitnessOptions(arm="simple", targets=("left",), train_s=0.3))
+    s_value, _ = jax.jit(short.fn)(jax.random.PRNGKey(0), MetaParams.original())
+    assert float(s_value) == pytest.approx(max(float(c_value) - (0.04 - SHORTFALL_MARGIN_M), 0.0), abs=1e-6)
+
+
+def test_shortfall_fitness_averages_targets_and_is_zero_inside():
+    import jax.numpy as jnp
+
+    from jaxarm.evolve.reaching import _shortfall
+
+    trace_inside = jnp.array([0.15, 0.10, 0.02, 0.05])     # entered with 2 cm to spare
+    trace_near = jnp.array([0.15, 0.035, 0.06])              # entered the 4 cm circle, not the 3 cm one
+    trace_far = jnp.array([0.15, 0.12, 0.13])
+    assert float(_shortfall(trace_inside, 0.04)) == 0.0
+    assert float(_shortfall(trace_near, 0.04)) == pytest.approx(0.005, abs=1e-7)
+    assert float(_shortfall(trace_far, 0.04)) == pytest.approx(0.09, abs=1e-7)
