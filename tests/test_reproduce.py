@@ -95,6 +95,21 @@ def test_preset_round_trip_from_search(search, preset_dir):
         presets.save(p, preset_dir)
 
 
+def test_preset_from_a_stopped_search_needs_allow_unfinished(tmp_path, capsys):
+    out = tmp_path / "stopped"
+    assert main(["evolve", "--fitness", "quadratic", "--strategy", "SimpleGA", "--population", "4",
+                 "--generations", "3", "--chunk", "1", "--max-chunks", "1", "--top-k", "3", "--arm", "simple",
+                 "--out", str(out)]) == 0
+    with pytest.raises(ConfigError, match=r"unfinished \(1 of 3 generations\).*--allow-unfinished"):
+        presets.from_search(out, "early")
+    assert main(["reproduce", "--make-preset", "early", "--from-search", str(out), "--preset-dir", str(tmp_path)]) == 2
+    assert "--allow-unfinished" in capsys.readouterr().err
+    assert main(["reproduce", "--make-preset", "early", "--from-search", str(out), "--preset-dir", str(tmp_path),
+                 "--allow-unfinished"]) == 0
+    search = presets.load("early", tmp_path).provenance["search"]
+    assert search["generations_done"] == 1 and search["config"]["generations"] == 3 and search["search_stopped_early"]
+
+
 def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
     from jaxarm.evolve.reproduce import reproduce
 

@@ -228,8 +228,10 @@ def _evolve_command(history: dict, top_k: dict, search_dir: Path) -> str:
 
 
 def from_search(search_dir: str | Path, name: str, description: str | None = None, command: str | None = None,
-                max_top: int = MAX_TOP, arms: tuple[str, ...] | None = None) -> Preset:
-    """A preset from a finished ``jaxarm evolve`` folder: ``best`` = its rank-1 set, ``top`` = its first
+                max_top: int = MAX_TOP, arms: tuple[str, ...] | None = None,
+                allow_unfinished: bool = False) -> Preset:
+    """A preset from a finished ``jaxarm evolve`` folder (or, with ``allow_unfinished``, one stopped early: its
+    provenance then records ``generations_done`` below the planned ``generations`` and ``search_stopped_early``): ``best`` = its rank-1 set, ``top`` = its first
     ``max_top`` sets (ranked as in top_k.json: by the re-evaluation when the search did one). Provenance: the
     command (``command`` as given, else reconstructed from history.json and marked so), the search seed and
     configuration, its cost (run and compile seconds, evaluations, network-seconds) and the dates. ``arms``:
@@ -245,9 +247,11 @@ def from_search(search_dir: str | Path, name: str, description: str | None = Non
     if not rows:
         raise ConfigError(f"{search_dir / 'top_k.json'} holds no candidates")
     config = history.get("config", {})
-    if history.get("generations_done", 0) < config.get("generations", 0):
+    stopped_early = history.get("generations_done", 0) < config.get("generations", 0)
+    if stopped_early and not allow_unfinished:
         raise ConfigError(f"{search_dir}: the search is unfinished ({history.get('generations_done')} of "
-                          f"{config.get('generations')} generations); run the same `jaxarm evolve` command to finish")
+                          f"{config.get('generations')} generations); run the same `jaxarm evolve` command to finish, or allow_unfinished "
+                          "(--allow-unfinished) for a preset from the generations done")
     if not 1 <= max_top <= MAX_TOP:
         raise ConfigError(f"max_top = {max_top}: must be in [1, {MAX_TOP}]")
     fit = top_k.get("fitness") or history.get("fitness", {})
@@ -271,7 +275,8 @@ def from_search(search_dir: str | Path, name: str, description: str | None = Non
         "command_reconstructed": not command,
         "seed": config.get("seed"),
         "search": {"config": config, "fitness": fit, "space": history.get("space"),
-                   "generations_done": history.get("generations_done"), "reevaluated": bool(top_k.get("reevaluated")),
+                   "generations_done": history.get("generations_done"), "search_stopped_early": stopped_early,
+                   "reevaluated": bool(top_k.get("reevaluated")),
                    "folder": str(search_dir)},
         "cost": {"run_s": costs.get("run_s"), "compile_s": costs.get("compile_s"), "evaluations": evals,
                  "network_seconds": evals * per_eval if evals is not None and per_eval else None,

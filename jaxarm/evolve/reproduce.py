@@ -264,6 +264,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--description", help="the preset's one-line description (default: from the search)")
     g.add_argument("--search-command", help="the exact `jaxarm evolve ...` command of the search (default: "
                                             "reconstructed from its history.json)")
+    g.add_argument("--allow-unfinished", action="store_true",
+                   help="accept a search stopped before its --generations (recorded in the preset's provenance)")
     g.add_argument("--preset-dir", type=Path, default=preset_lib.PRESET_DIR,
                    help=f"where presets are read and written (default: the package's, {preset_lib.PRESET_DIR})")
     return ap
@@ -282,7 +284,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
             if args.from_search is None:
                 ap.error("--make-preset needs --from-search DIR")
             p = preset_lib.from_search(args.from_search, args.make_preset, description=args.description,
-                                       command=args.search_command)
+                                       command=args.search_command, allow_unfinished=args.allow_unfinished)
             path = preset_lib.save(p, args.preset_dir)
             print(f"preset {p.name!r}: best set + {len(p.top)} top sets from {args.from_search} -> {path}")
             return 0
