@@ -142,3 +142,16 @@ def test_shortfall_fitness_averages_targets_and_is_zero_inside():
     assert float(_shortfall(trace_inside, 0.04)) == 0.0
     assert float(_shortfall(trace_near, 0.04)) == pytest.approx(0.005, abs=1e-7)
     assert float(_shortfall(trace_far, 0.04)) == pytest.approx(0.09, abs=1e-7)
+
+
+def test_shortfall_variants_margin_and_worst_target():
+    import jax.numpy as jnp
+
+    from jaxarm.evolve import fitness
+    from jaxarm.evolve.reaching import _shortfall_with_margin
+
+    trace = jnp.array([0.15, 0.025, 0.06])                  # entered the 3 cm circle, not the 2 cm one
+    assert float(_shortfall_with_margin(0.01)(trace, 0.04)) == 0.0
+    assert float(_shortfall_with_margin(0.02)(trace, 0.04)) == pytest.approx(0.005, abs=1e-7)
+    for name in ("reaching-shortfall-2cm", "reaching-shortfall-worst"):
+        assert name in fitness.available()

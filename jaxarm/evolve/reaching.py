@@ -12,7 +12,11 @@ that passes through the target and leaves it; this one does not (the paper's tes
 target is scored by how far its closest approach stays outside a circle ``SHORTFALL_MARGIN_M`` smaller than the
 success circle (0 when the hand entered it with that much to spare), and the targets are averaged instead of taking
 the worst, so a candidate gains from every network that reaches, on either target, and the target that misses by
-more weighs more. With ``--seeds-per-candidate N`` (seeds averaged) it is the candidate's expected shortfall, m.
+more weighs more. With ``--seeds-per-candidate N`` (seeds averaged) it is the candidate's expected shortfall, m. Two variants:
+``reaching-shortfall-2cm`` shrinks the circle by 2 cm (to 2 cm): once most candidates enter the 3 cm circle on every
+evaluation the 1 cm version scores them all 0 and can no longer rank them; ``reaching-shortfall-worst`` takes the
+worst target instead of the mean, for an arm whose targets pull the metaparameters apart (a set that trades one
+target for the other scores no better than its weaker target).
 
 The training length per evaluation is static (it sets the compiled loop's length): ``train_s`` seconds, run as
 ``round(train_s / 30)`` epochs of 30 s (or one shorter epoch when ``train_s < 30``), so the ``epochs``
@@ -49,9 +53,16 @@ def _closest_distance(distance_m, radius_m):
 SHORTFALL_MARGIN_M = 0.01
 
 
-def _shortfall(distance_m, radius_m):
-    """How far the closest approach stays outside the circle of ``radius_m - SHORTFALL_MARGIN_M``, m (0 inside)."""
-    return jnp.maximum(jnp.min(distance_m) - (radius_m - SHORTFALL_MARGIN_M), 0.0)
+def _shortfall(distance_m, radius_m, margin_m=SHORTFALL_MARGIN_M):
+    """How far the closest approach stays outside the circle of ``radius_m - margin_m``, m (0 inside)."""
+    return jnp.maximum(jnp.min(distance_m) - (radius_m - margin_m), 0.0)
+
+
+def _shortfall_with_margin(margin_m: float):
+    """``_shortfall`` with another margin, m: a deeper circle keeps ranking candidates that all enter the 3 cm one."""
+    def per_target(distance_m, radius_m):
+        return _shortfall(distance_m, radius_m, margin_m)
+    return per_target
 
 
 def make_reaching(options: fitness.FitnessOptions, per_target=_authors_distance, combine=jnp.max) -> fitness.Fitness:
@@ -86,3 +97,9 @@ fitness.register("reaching-closest", lambda options: make_reaching(options, _clo
 fitness.register("reaching-shortfall", lambda options: make_reaching(options, _shortfall, jnp.mean),
                  "mean over targets of how far the closest approach stays outside the success circle shrunk by "
                  "1 cm, m (0 = every target entered with 1 cm to spare; aims at the paper's success counts)")
+fitness.register("reaching-shortfall-2cm", lambda options: make_reaching(options, _shortfall_with_margin(0.02),
+                                                                          jnp.mean),
+                 "as reaching-shortfall with the circle shrunk by 2 cm (to 2 cm): keeps ranking candidates that all "
+                 "enter the 3 cm circle")
+fitness.register("reaching-shortfall-worst", lambda options: make_reaching(options, _shortfall, jnp.max),
+                 "as reaching-shortfall with the worst target instead of the mean over targets")
