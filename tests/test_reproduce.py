@@ -95,6 +95,24 @@ def test_preset_round_trip_from_search(search, preset_dir):
         presets.save(p, preset_dir)
 
 
+def test_reconstructed_command_resumes_its_search(tmp_path, capsys):
+    """A preset's reconstructed command carries start, frozen and sigma values exactly (not rounded to 6 digits,
+    which is a different search space the checkpoint refuses): run again, it extends the search it came from."""
+    out = tmp_path / "s"
+    assert main(["evolve", "--fitness", "quadratic", "--strategy", "CMA_ES", "--population", "4", "--generations",
+                 "1", "--chunk", "1", "--top-k", "3", "--arm", "simple", "--sigma", "0.123456789",
+                 "--search", "learn_rate,v_em_max", "--start", "learn_rate=0.0897119433,v_em_max=156.2515123",
+                 "--freeze", "plast_ei_maxw=9.108501234", "--out", str(out)]) == 0
+    command = presets.from_search(out, "exact").provenance["command"]
+    assert "0.0897119" in command and "9.108501" in command
+    argv = shlex.split(command)[1:]
+    argv[argv.index("--generations") + 1] = "2"
+    capsys.readouterr()
+    assert main(argv) == 0
+    assert "resuming from the checkpoint at generation 1/2 (extended from 1 generations)" in capsys.readouterr().out
+    assert json.loads((out / "history.json").read_text())["generations_done"] == 2
+
+
 def test_preset_from_a_stopped_search_needs_allow_unfinished(tmp_path, capsys):
     out = tmp_path / "stopped"
     assert main(["evolve", "--fitness", "quadratic", "--strategy", "SimpleGA", "--population", "4",

@@ -197,9 +197,20 @@ def save(preset: Preset, directory: Path = PRESET_DIR, overwrite: bool = False) 
     return path
 
 
+def _number(v) -> str:
+    """A number as a command-line value that parses back to the same value: ``repr`` of the stored float (the
+    shortest round-trip form), so a reconstructed command resumes the search it describes (a rounded start or frozen
+    value is a different search space, and the checkpoint refuses it)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return str(v)
+    v = float(v)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+
+
 def _evolve_command(history: dict, top_k: dict, search_dir: Path) -> str:
     """The ``jaxarm evolve`` command equivalent to the search described in history.json (same fitness, space,
-    strategy and seeds; --eval-batch and --chunk only change memory use and checkpoint spacing)."""
+    strategy and seeds; --eval-batch and --chunk only change memory use and checkpoint spacing). Values are written
+    exactly (:func:`_number`): running the command again with the same ``--out`` resumes or extends that search."""
     c, fit, space = history["config"], history.get("fitness", {}), history.get("space", {})
     args = ["jaxarm", "evolve", "--fitness", str(fit.get("name", "?"))]
     if fit.get("arm"):
@@ -207,20 +218,20 @@ def _evolve_command(history: dict, top_k: dict, search_dir: Path) -> str:
     if fit.get("targets"):
         args += ["--targets", ",".join(fit["targets"])]
     if fit.get("train_s") is not None:
-        args += ["--train-s", f"{fit['train_s']:g}"]
+        args += ["--train-s", _number(fit["train_s"])]
     args += ["--strategy", c["strategy"], "--population", str(c["population_size"]),
              "--seeds-per-candidate", str(c["seeds_per_candidate"]), "--generations", str(c["generations"]),
-             "--chunk", str(c["chunk_size"]), "--seed", str(c["seed"]), "--sigma", f"{c['sigma_init']:g}",
+             "--chunk", str(c["chunk_size"]), "--seed", str(c["seed"]), "--sigma", _number(c["sigma_init"]),
              "--top-k", str(c["top_k"]), "--seed-mode", c["seed_mode"], "--seed-reduce", c["seed_reduce"]]
     if c.get("strategy_params"):
-        args += ["--strategy-param", ",".join(f"{k}={v:g}" for k, v in c["strategy_params"].items())]
+        args += ["--strategy-param", ",".join(f"{k}={_number(v)}" for k, v in c["strategy_params"].items())]
     if c.get("eval_batch_size"):
         args += ["--eval-batch", str(c["eval_batch_size"])]
     if space.get("frozen"):
-        args += ["--freeze", ",".join(f"{k}={v:g}" for k, v in space["frozen"].items())]
+        args += ["--freeze", ",".join(f"{k}={_number(v)}" for k, v in space["frozen"].items())]
     starts = {k: v["start"] for k, v in space.get("searched", {}).items() if v.get("start") != ORIGINAL.get(k)}
     if starts:
-        args += ["--start", ",".join(f"{k}={v:g}" for k, v in starts.items())]
+        args += ["--start", ",".join(f"{k}={_number(v)}" for k, v in starts.items())]
     rows = top_k.get("top_k", [])
     if top_k.get("reevaluated") and rows and "reevaluation" in rows[0]:
         args += ["--reevaluate-seeds", str(len(rows[0]["reevaluation"].get("fitness_per_seed", [])))]
