@@ -13,8 +13,9 @@ from jaxarm.config.validate import ConfigError
 from jaxarm.evolve import fitness as fit
 from jaxarm.evolve.checkpoint import SearchCheckpointer
 from jaxarm.evolve.cli import evolve_main
-from jaxarm.evolve.runner import HISTORY_FILE, PLOT_FILE, TOP_K_FILE, run_search
-from jaxarm.evolve.search import STRATEGIES, EvolveConfig, make_search, rank_failures_last
+from jaxarm.evolve.runner import HISTORY_FILE, PLOT_FILE, REEVALUATION_FILE, TOP_K_FILE, run_search
+from jaxarm.evolve.search import (RERANK_STREAM, STRATEGIES, EvolveConfig, make_reevaluate, make_search,
+                                  rank_failures_last)
 from jaxarm.evolve.space import SearchSpace
 from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL
 
@@ -266,6 +267,35 @@ def test_reevaluation_ranks_the_top_k_again(tmp_path):
     distances = [r["metrics"]["distance"] for r in rows]
     assert distances[0] == min(distances)
     assert int(result.state.generation) == 6
+
+
+def test_killed_reevaluation_resumes_where_it_stopped(tmp_path):
+    """Re-evaluation goes one candidate at a time and saves each result: with the file cut back to 4 of 10 (a kill
+    after the 4th), a rerun evaluates only the other 6 and writes the same top_k.json; the one-at-a-time results
+    equal one batched call over all candidates (to float32 rounding: the two compile separately)."""
+    config = EvolveConfig(strategy=CHEAP, population_size=8, generations=3, chunk_size=3, top_k=10)
+    fitness = fit.make_quadratic(0.05)
+    result = run_search(fitness, SMALL, config, tmp_path, reevaluate_seeds=3, log=lambda _: None)
+    first = json.loads((tmp_path / TOP_K_FILE).read_text())
+    saved = json.loads((tmp_path / REEVALUATION_FILE).read_text())
+    assert len(saved["candidates"]) == 10
+    arc = result.state.archive
+    units = np.asarray(arc.unit)[np.isfinite(np.asarray(arc.fitness))]
+    key = jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM)
+    batched = make_reevaluate(fitness, SMALL, 3)(key, units)
+    np.testing.assert_allclose([c["fitness"] for c in saved["candidates"]], batched.fitness, rtol=1e-5, atol=1e-7)
+
+    (tmp_path / REEVALUATION_FILE).write_text(json.dumps({**saved, "candidates": saved["candidates"][:4]}))
+    lines = []
+    run_search(fitness, SMALL, config, tmp_path, reevaluate_seeds=3, log=lines.append)
+    assert any("resuming the re-evaluation: 4/10" in ln for ln in lines)
+    assert sum(ln.startswith("re-evaluated ") and "/10:" in ln for ln in lines) == 6
+    assert json.loads((tmp_path / TOP_K_FILE).read_text()) == first
+    # other seeds: the saved results do not apply, all 10 are evaluated again
+    lines = []
+    run_search(fitness, SMALL, config, tmp_path, reevaluate_seeds=2, log=lines.append)
+    assert not any("resuming the re-evaluation" in ln for ln in lines)
+    assert sum(ln.startswith("re-evaluated ") and "/10:" in ln for ln in lines) == 10
 
 
 def test_cma_es_finds_the_benchmark_optimum():

@@ -10,6 +10,8 @@ Files in the output folder:
 * ``top_k.json``: the best ``top_k`` candidates of the whole search, best first, as complete metaparameter sets;
   with ``reevaluate_seeds``, each also evaluated again with that many fresh seeds after the search, and the list
   ranked by that re-evaluation (the search's own ranking favours lucky draws of a noisy fitness).
+* ``reevaluation.json``: the re-evaluation's results so far, one candidate at a time, so a killed re-evaluation
+  resumes where it stopped.
 * ``convergence.png``: best, median and best-so-far fitness and failures per generation.
 
 Non-finite numbers are written to JSON as ``null``.
@@ -28,13 +30,14 @@ import numpy as np
 from jaxarm.config.validate import ConfigError
 from jaxarm.evolve.checkpoint import SearchCheckpointer
 from jaxarm.evolve.fitness import Fitness
-from jaxarm.evolve.search import (RERANK_STREAM, EvolveConfig, SearchState, make_reevaluate, make_search,
-                                  with_generations)
+from jaxarm.evolve.search import (RERANK_STREAM, EvolveConfig, Reevaluation, SearchState, make_reevaluate,
+                                  make_search, with_generations)
 from jaxarm.evolve.space import SearchSpace
 
 HISTORY_FILE = "history.json"
 TOP_K_FILE = "top_k.json"
 PLOT_FILE = "convergence.png"
+REEVALUATION_FILE = "reevaluation.json"
 CHECKPOINT_DIR = "checkpoints"
 
 
@@ -222,7 +225,8 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
         finished = int(state.generation) >= G
         reevaluation = None
         if finished and reevaluate_seeds > 0:
-            reevaluation = _reevaluate(state, space, config, reevaluate_fitness or fitness, reevaluate_seeds, log)
+            reevaluation = _reevaluate(state, space, config, reevaluate_fitness or fitness, reevaluate_seeds, log,
+                                        out)
         _write_outputs(state, space, config, description, costs, fitness, out, plot=True, reevaluation=reevaluation)
         if finished:
             best = top_k_table(state, space, reevaluation)
@@ -236,21 +240,53 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
     return SearchResult(state, finished, out)
 
 
-def _reevaluate(state, space, config, fitness, seeds, log):
+def _reevaluate(state, space, config, fitness, seeds, log, out: Path):
+    """Re-evaluate the archive one candidate at a time (one compiled call each, the same fresh keys for all), with
+    a progress line per candidate and each result saved to ``reevaluation.json`` as it comes: a killed
+    re-evaluation resumes at the first candidate not yet done (a file for other seeds, another training length or
+    other candidates is ignored)."""
     fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
     filled = np.isfinite(np.asarray(state.archive.fitness))
-    units = np.asarray(state.archive.unit)[filled]
+    units = np.asarray(state.archive.unit, np.float32)[filled]
     if units.shape[0] == 0:
         return None
     reevaluate = make_reevaluate(fitness.fn, space, seeds, config.seed_reduce)
     key = jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM)
-    t0 = time.perf_counter()
-    result = jax.block_until_ready(reevaluate(key, units))
-    dt = time.perf_counter() - t0
-    failed = int(np.sum(~np.isfinite(np.asarray(result.fitness_per_seed))))
-    log(f"re-evaluated the top {units.shape[0]} with {seeds} fresh seeds each in {dt:.1f} s (compile included); "
-        f"failed evaluations: {failed}")
+    identity = {"seeds": seeds, "seed_reduce": config.seed_reduce,
+                "network_seconds_per_eval": fitness.network_seconds_per_eval,
+                "units": [[float(x) for x in u] for u in units]}
+    path = out / REEVALUATION_FILE
+    done: list[dict] = []
+    if path.exists():
+        saved = json.loads(path.read_text())
+        if {k: saved.get(k) for k in identity} == identity:
+            done = saved.get("candidates", [])[:units.shape[0]]
+            if done:
+                log(f"resuming the re-evaluation: {len(done)}/{units.shape[0]} candidates done ({path})")
+    t_all = time.perf_counter()
+    for i in range(len(done), units.shape[0]):
+        t0 = time.perf_counter()
+        r = jax.device_get(jax.block_until_ready(reevaluate(key, units[i:i + 1])))
+        done.append({"fitness": _num(r.fitness[0]), "fitness_per_seed": [_num(x) for x in r.fitness_per_seed[0]],
+                     "metrics": {m: _num(v[0]) for m, v in r.metrics.items()}})
+        _write_json(path, {**identity, "candidates": done})
+        log(f"re-evaluated {i + 1}/{units.shape[0]}: fitness {_fmt(done[-1]['fitness'])} over {seeds} fresh seeds "
+            f"(search fitness {_fmt(float(np.asarray(state.archive.fitness)[filled][i]))}) | "
+            f"{time.perf_counter() - t0:.1f} s")
+    nan = float("nan")
+    as_array = lambda xs: np.asarray([nan if x is None else x for x in xs], np.float32)   # noqa: E731
+    result = Reevaluation(
+        fitness=as_array([c["fitness"] for c in done]),
+        fitness_per_seed=np.stack([as_array(c["fitness_per_seed"]) for c in done]),
+        metrics={m: as_array([c["metrics"][m] for c in done]) for m in done[0]["metrics"]})
+    failed = int(np.sum(~np.isfinite(result.fitness_per_seed)))
+    log(f"re-evaluated the top {units.shape[0]} with {seeds} fresh seeds each in "
+        f"{time.perf_counter() - t_all:.1f} s this run (compile included); failed evaluations: {failed}")
     return result
+
+
+def _fmt(x) -> str:
+    return "nan" if x is None or not math.isfinite(x) else f"{x:.5g}"
 
 
 def _write_outputs(state, space, config, description, costs, fitness, out: Path, plot: bool,
