@@ -110,3 +110,27 @@ def test_wam7_wrist_locked_variant_runs(short_traj):
     cfg = WamSimConfig(physics=PhysicsConfig(variant="wam7_wrist_locked"))
     log = simulate(short_traj, cfg, seed=0, duration_s=3.0)
     assert within_joint_range(log.rows[:, 10:14]) and np.all(np.abs(log.rows[:, 14:18]) <= LIMITS + 1e-9)
+
+
+def test_network_training_trajectory_streams_to_the_robot(tmp_path):
+    # experiments/wam_tracking.py --network: a spiking network's closed-loop training drives the arm, the joint
+    # angles (10 ms samples) go to the robot. Simple arm and 2 s keep it short; the same seed gives the same path.
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "wam_tracking.py"
+    spec = importlib.util.spec_from_file_location("wam_tracking", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    traj = mod.network_trajectory("original", "simple", "left", seed=0, duration_s=2.0)
+    assert traj.t.shape == (201,) and traj.q.shape == (201, 2)
+    np.testing.assert_allclose(traj.q[0], (0.62, 1.53), atol=1e-6)     # the task's start posture, rad
+    assert np.ptp(traj.q, axis=0).max() > np.radians(5)               # babbling moves the arm
+    again = mod.network_trajectory("original", "simple", "left", seed=0, duration_s=2.0)
+    np.testing.assert_array_equal(traj.q, again.q)
+    assert mod.main(["--network", "original", "--arm", "simple", "--seeds", "0", "--duration", "2",
+                     "--save-trajectories", str(tmp_path)]) == 0
+    saved = load_trajectory(tmp_path / "network_0.npz")
+    np.testing.assert_array_equal(saved.q, traj.q)
+    r = tracking_report(simulate(saved, seed=0, duration_s=2.0).columns())
+    assert r["mean_abs_error_deg"]["shoulder"] < 10.0

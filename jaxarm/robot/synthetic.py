@@ -1,6 +1,7 @@
-"""A seeded, reach-like joint trajectory: the stand-in for a trained network's trajectory.
+"""A seeded, reach-like joint trajectory: a network-free stand-in for a network's trajectory.
 
-Until trained trajectories exist, the robot experiments use this. It imitates the paper's "50-s training trajectory,
+Tests and quick robot experiments use it (``experiments/wam_tracking.py --network PRESET`` streams a real
+network's training trajectory instead). It imitates the paper's "50-s training trajectory,
 with enforced exploratory movements, where joint angles varied over 100 deg at angular velocities above 60 deg/s"
 (§3.3): a chain of minimum-jerk movements (Flash & Hogan 1985 profile ``10 s^3 - 15 s^4 + 6 s^5``) between waypoints
 drawn uniformly in the task's joint ranges (shoulder -10..110 deg, elbow 0..140 deg; paper §2.3), both joints moving
