@@ -11,8 +11,12 @@ $(BIN)/jaxarm: pyproject.toml
 	$(BIN)/pip install --quiet -e ".[test]"
 	touch $(BIN)/jaxarm
 
+# The arms alone (seconds), then the main job on a small default: 4 + 4 networks per target trained 4 epochs with
+# the evolved musculoskeletal preset, tested, counted (a few minutes on one core; rerunning resumes/reuses it).
 demo: $(BIN)/jaxarm
 	$(BIN)/jaxarm demo --out runs/demo
+	$(BIN)/jaxarm reproduce --arm musculoskeletal --preset msarm-cmaes-2cm-rerank --networks 4 --top 4 --epochs 4 \
+	    --out runs/demo/reach
 
 test: $(BIN)/jaxarm
 	$(BIN)/python -m pytest -q
