@@ -54,7 +54,12 @@ def network_trajectory(preset: str, arm: str, target: str, seed: int, duration_s
     from jaxarm.task.config import TaskConfig
     from jaxarm.train import make_train
 
-    mp = presets.load(preset).best_metaparams()
+    p = presets.load(preset)
+    if arm not in p.arms:
+        import sys
+        print(f"note: preset {p.name!r} was tuned for the {'/'.join(p.arms)} arm; running it on the {arm} arm",
+              file=sys.stderr)
+    mp = p.best_metaparams()
     config = LoopConfig(arm=arm, task=TaskConfig(target=target))
     fns = make_train(config)
     loop = fns.loop
