@@ -113,6 +113,34 @@ def test_reconstructed_command_resumes_its_search(tmp_path, capsys):
     assert json.loads((out / "history.json").read_text())["generations_done"] == 2
 
 
+def test_reevaluation_on_one_target_makes_a_preset_for_it(tmp_path, capsys):
+    """--reevaluate-targets ranks a two-target search's top-k for one target (the paper's "best 30 configurations
+    for each case"): top_k.json says so, the preset is for that target, its command re-creates the re-evaluation,
+    and a target outside --targets is refused by name."""
+    out = tmp_path / "s"
+    base = ["evolve", "--fitness", "quadratic", "--strategy", "CMA_ES", "--population", "4", "--generations", "1",
+            "--chunk", "1", "--top-k", "3", "--arm", "simple", "--targets", "left,bottom", "--out", str(out)]
+    assert main(base + ["--reevaluate-seeds", "2", "--reevaluate-targets", "top"]) == 2
+    assert "--reevaluate-targets = 'top'" in capsys.readouterr().err
+    assert main(base + ["--reevaluate-targets", "bottom"]) == 2
+    assert "needs --reevaluate-seeds" in capsys.readouterr().err
+    assert main(base + ["--reevaluate-seeds", "2", "--reevaluate-targets", "bottom"]) == 0
+    top = json.loads((out / "top_k.json").read_text())
+    assert top["reevaluated"] and top["reevaluation"]["targets"] == ["bottom"]
+    assert json.loads((out / "reevaluation.json").read_text())["targets"] == ["bottom"]
+    p = presets.from_search(out, "bottom-only")
+    assert p.targets == ("bottom",) and "re-ranked for bottom" in p.description
+    args = shlex.split(p.provenance["command"])
+    assert args[args.index("--reevaluate-targets") + 1] == "bottom" and args[args.index("--targets") + 1] == \
+        "left,bottom"
+    # both targets again: the one-target results are not reused, all 3 are evaluated again
+    capsys.readouterr()
+    assert main(base + ["--reevaluate-seeds", "2"]) == 0
+    out_text = capsys.readouterr().out
+    assert "resuming the re-evaluation" not in out_text and "re-evaluated 3/3" in out_text
+    assert presets.from_search(out, "both").targets == ("left", "bottom")
+
+
 def test_preset_from_a_stopped_search_needs_allow_unfinished(tmp_path, capsys):
     out = tmp_path / "stopped"
     assert main(["evolve", "--fitness", "quadratic", "--strategy", "SimpleGA", "--population", "4",

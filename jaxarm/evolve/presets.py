@@ -235,6 +235,11 @@ def _evolve_command(history: dict, top_k: dict, search_dir: Path) -> str:
     rows = top_k.get("top_k", [])
     if top_k.get("reevaluated") and rows and "reevaluation" in rows[0]:
         args += ["--reevaluate-seeds", str(len(rows[0]["reevaluation"].get("fitness_per_seed", [])))]
+        again = top_k.get("reevaluation") or {}
+        if again.get("train_s") is not None and again["train_s"] != fit.get("train_s"):
+            args += ["--reevaluate-train-s", _number(again["train_s"])]
+        if again.get("targets"):
+            args += ["--reevaluate-targets", ",".join(again["targets"])]
     return shlex.join(args + ["--out", str(search_dir)])
 
 
@@ -266,6 +271,8 @@ def from_search(search_dir: str | Path, name: str, description: str | None = Non
     if not 1 <= max_top <= MAX_TOP:
         raise ConfigError(f"max_top = {max_top}: must be in [1, {MAX_TOP}]")
     fit = top_k.get("fitness") or history.get("fitness", {})
+    # A re-evaluation on a subset of the targets ranked the sets for those targets: the preset is for them.
+    targets = (top_k.get("reevaluation") or {}).get("targets") or fit.get("targets")
     arms = tuple(arms) if arms else ((fit["arm"],) if fit.get("arm") else ())
     if not arms:
         raise ConfigError(f"{search_dir}: the search does not name its arm; give arms=(...)")
@@ -288,6 +295,7 @@ def from_search(search_dir: str | Path, name: str, description: str | None = Non
         "search": {"config": config, "fitness": fit, "space": history.get("space"),
                    "generations_done": history.get("generations_done"), "search_stopped_early": stopped_early,
                    "reevaluated": bool(top_k.get("reevaluated")),
+                   "reevaluation": top_k.get("reevaluation"),
                    "folder": str(search_dir)},
         "cost": {"run_s": costs.get("run_s"), "compile_s": costs.get("compile_s"), "evaluations": evals,
                  "network_seconds": evals * per_eval if evals is not None and per_eval else None,
@@ -300,6 +308,8 @@ def from_search(search_dir: str | Path, name: str, description: str | None = Non
         description = (f"best of a {config.get('strategy', '?')} search ({history.get('generations_done')} "
                        f"generations x {config.get('population_size')} candidates, fitness {fit.get('name', '?')}"
                        f"{', ' + ','.join(fit['targets']) if fit.get('targets') else ''}) on the {'/'.join(arms)} arm")
+        if targets != fit.get("targets"):
+            description += f", its top {len(rows)} re-ranked for {','.join(targets)}"
     return Preset(name=name, description=description, arms=arms,
                   best=rows[0]["metaparams"], top=tuple(top), provenance=provenance,
-                  targets=tuple(fit["targets"]) if fit.get("targets") else None)
+                  targets=tuple(targets) if targets else None)

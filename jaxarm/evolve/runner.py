@@ -147,7 +147,7 @@ def plot_convergence(history: dict, path: Path, title: str = "") -> None:
 def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveConfig, out_dir: str | Path, *,
                fitness_meta: dict | None = None, max_chunks: int | None = None,
                reevaluate_seeds: int = 0, reevaluate_fitness: Fitness | Callable | None = None,
-               log: Callable[[str], None] = print) -> SearchResult:
+               reevaluate_meta: dict | None = None, log: Callable[[str], None] = print) -> SearchResult:
     """Run (or resume) a search, checkpointing and reporting after every chunk; write the result files.
 
     ``fitness``: a :class:`Fitness` or a bare pure function (see :mod:`jaxarm.evolve.fitness`). ``fitness_meta``: a
@@ -155,8 +155,11 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
     or a different space or configuration, raises :class:`ConfigError`. ``max_chunks``: stop after that many chunks
     in this call (the search can be resumed later). ``reevaluate_seeds``: when the search is done, evaluate its
     top-k again with that many fresh seeds (the same for every candidate, from a key stream the search never uses)
-    with ``reevaluate_fitness`` (default: ``fitness``; e.g. the same task with the full training length) and rank
-    ``top_k.json`` by it. It is not part of the checkpointed search, so a finished search can be re-evaluated later.
+    with ``reevaluate_fitness`` (default: ``fitness``; e.g. the same task with the full training length, or one of
+    its targets) and rank ``top_k.json`` by it. ``reevaluate_meta``: a JSON description of ``reevaluate_fitness``
+    (e.g. ``{"targets": ["bottom"], "train_s": 360}``), written to ``top_k.json`` as ``reevaluation``; its
+    ``targets`` are part of the re-evaluation's identity (saved results for other targets are not reused). It is
+    not part of the checkpointed search, so a finished search can be re-evaluated later.
     """
     fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
     out = Path(out_dir)
@@ -226,8 +229,9 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
         reevaluation = None
         if finished and reevaluate_seeds > 0:
             reevaluation = _reevaluate(state, space, config, reevaluate_fitness or fitness, reevaluate_seeds, log,
-                                        out)
-        _write_outputs(state, space, config, description, costs, fitness, out, plot=True, reevaluation=reevaluation)
+                                        out, reevaluate_meta)
+        _write_outputs(state, space, config, description, costs, fitness, out, plot=True, reevaluation=reevaluation,
+                       reevaluation_meta=reevaluate_meta if reevaluation is not None else None)
         if finished:
             best = top_k_table(state, space, reevaluation)
             if best:
@@ -240,7 +244,7 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
     return SearchResult(state, finished, out)
 
 
-def _reevaluate(state, space, config, fitness, seeds, log, out: Path):
+def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict | None = None):
     """Re-evaluate the archive one candidate at a time (one compiled call each, the same fresh keys for all), with
     a progress line per candidate and each result saved to ``reevaluation.json`` as it comes: a killed
     re-evaluation resumes at the first candidate not yet done (a file for other seeds, another training length or
@@ -255,11 +259,13 @@ def _reevaluate(state, space, config, fitness, seeds, log, out: Path):
     identity = {"seeds": seeds, "seed_reduce": config.seed_reduce,
                 "network_seconds_per_eval": fitness.network_seconds_per_eval,
                 "units": [[float(x) for x in u] for u in units]}
+    if meta and meta.get("targets") is not None:   # only when given: files written before this key still resume
+        identity["targets"] = list(meta["targets"])
     path = out / REEVALUATION_FILE
     done: list[dict] = []
     if path.exists():
         saved = json.loads(path.read_text())
-        if {k: saved.get(k) for k in identity} == identity:
+        if {k: saved.get(k) for k in identity} == identity and saved.get("targets") == identity.get("targets"):
             done = saved.get("candidates", [])[:units.shape[0]]
             if done:
                 log(f"resuming the re-evaluation: {len(done)}/{units.shape[0]} candidates done ({path})")
@@ -290,7 +296,7 @@ def _fmt(x) -> str:
 
 
 def _write_outputs(state, space, config, description, costs, fitness, out: Path, plot: bool,
-                   reevaluation=None) -> None:
+                   reevaluation=None, reevaluation_meta: dict | None = None) -> None:
     history = history_table(state, space)
     evals = costs["evaluations"]
     summary = {
@@ -303,9 +309,10 @@ def _write_outputs(state, space, config, description, costs, fitness, out: Path,
         "history": history,
     }
     _write_json(out / HISTORY_FILE, summary)
-    _write_json(out / TOP_K_FILE, {"fitness": description["fitness"], "lower_is_better": True,
-                                   "reevaluated": reevaluation is not None,
-                                   "top_k": top_k_table(state, space, reevaluation)})
+    top = {"fitness": description["fitness"], "lower_is_better": True, "reevaluated": reevaluation is not None}
+    if reevaluation_meta:
+        top["reevaluation"] = _jsonable(reevaluation_meta)
+    _write_json(out / TOP_K_FILE, {**top, "top_k": top_k_table(state, space, reevaluation)})
     if plot and history["generation"]:
         plot_convergence(history, out / PLOT_FILE,
                          title=f"{config.strategy}, population {config.population_size}, "
