@@ -227,3 +227,37 @@ def test_paper_stats_report_successful_networks_beside_the_paper(tmp_path):
     assert "1/2 (0/2) / 29/30" in table and "0/2 (0/2) / 26/30" in table and "0.327 (0.051)" in table
     with pytest.raises(FileNotFoundError, match="no results.json"):
         mod.run_folders([tmp_path])
+
+
+def test_joint_excursions_splits_reached_and_missed(tmp_path):
+    # experiments/joint_excursions.py: the geometry of the left target (shoulder flexion is the way there; the elbow
+    # alone also brings the hand closer but stops ~10 cm short) and the success split of a run's joint excursions.
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    from jaxarm.task.config import START_POSTURE_RAD
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "joint_excursions.py"
+    spec = importlib.util.spec_from_file_location("joint_excursions", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    g = mod.geometry("left")
+    assert abs(g["start_distance_cm"] - 15.1) < 0.2
+    assert g["shoulder_plus_cm"] < g["elbow_plus_cm"] < 0 < g["shoulder_minus_cm"]
+    assert g["shoulder_alone_closest_cm"] < 4 < g["elbow_alone_closest_cm"]
+    # three networks: one flexes the shoulder 0.4 rad and reaches, two lead with the elbow and miss
+    q = np.tile(np.asarray(START_POSTURE_RAD), (3, 5, 1))
+    q[0, 1:, 0] += np.linspace(0.1, 0.4, 4)
+    q[1, 1:, 1] += 0.5
+    q[2, 2:] += (0.1, 0.3)
+    run = tmp_path / "left" / "seeds"
+    run.mkdir(parents=True)
+    np.savez(run / "trajectories.npz", q=q)
+    (run / "results.json").write_text(json.dumps({"target": "left", "networks": [
+        {"success": True}, {"success": False}, {"success": False}]}))
+    (row,) = [mod.excursions(f) for f in mod.run_folders([tmp_path])]
+    assert (row["n"], row["success"], row["failures_elbow_led"], row["successes_elbow_led"]) == (3, 1, 2, 0)
+    np.testing.assert_allclose(row["median_excursion_rad_success"], (0.4, 0.0), atol=1e-6)
+    np.testing.assert_allclose(row["median_excursion_rad_failure"], (0.05, 0.4), atol=1e-6)
+    assert "| left | 1/3 | 2/2 | 0/1 | 0.40 / 0.00 | 0.05 / 0.40 |" in mod.markdown([row])
