@@ -55,6 +55,11 @@ class LoopConfig:
         reseed_noise_each_epoch: False (the original) restarts the background-noise streams identically at every
             epoch; True draws fresh streams per epoch.
         plasticity: False freezes the weights in training (babbling still runs): a control condition.
+        critic_error: what the critic compares 10 ms apart: "xy" (the original's training setting, XYERR: the
+            hand-target distance, m, 1 mm threshold) or "angle" (not what the original trained with: the joint-space
+            distance to the target posture, rad, sqrt(d_shoulder^2 + d_elbow^2), with the same numeric threshold,
+            0.001 rad). A diagnostic: with "xy", elbow flexion alone also brings the hand toward the left target,
+            so it is rewarded though it cannot get there (experiments/joint_excursions.py).
     """
 
     arm: str = "simple"
@@ -65,9 +70,11 @@ class LoopConfig:
     eligibility: stdp.EligibilityConfig = field(default_factory=stdp.EligibilityConfig)
     reseed_noise_each_epoch: bool = False
     plasticity: bool = True
+    critic_error: str = "xy"
 
     def __post_init__(self):
         check_choice(self, "arm", ARMS)
+        check_choice(self, "critic_error", ("xy", "angle"))
         check_choice(self, "backend", ("fast", "mjx"))
         for name in ("reseed_noise_each_epoch", "plasticity"):
             if not isinstance(getattr(self, name), bool):
@@ -82,7 +89,8 @@ class LoopState(NamedTuple):
     arm: Any                    # arm state (SI)
     readout: ro.ReadoutState
     babble: bab.BabblingState
-    err_hist_m: jnp.ndarray     # (2,) hand–target distance at the last two interface times, older first, m
+    err_hist_m: jnp.ndarray     # (2,) the critic's error at the last two interface times, older first: hand–target
+    #                             distance, m (rad, joint-space distance, with LoopConfig.critic_error = "angle")
     last_rl_ms: jnp.ndarray     # () time of the last critic update, ms
     last_scaling_ms: jnp.ndarray  # () time of the last synaptic scaling, ms
 
@@ -112,6 +120,7 @@ class ClosedLoop:
             raise ConfigError(f"arm step {arm_dt_ms} ms does not divide the interface period "
                               f"{config.network.interface_ms} ms")
         self.target_m = jnp.asarray(config.task.target_xy_m, jnp.float32)
+        self.target_q = jnp.asarray(config.task.target_q_rad, jnp.float32)
         self.start_q = jnp.asarray(config.task.start_posture_rad, jnp.float32)
         self.steps_per_interval = config.network.steps_per_interface
         self.pops = Populations(config.network)
@@ -143,10 +152,16 @@ class ClosedLoop:
         arm_state = self.arm.init(self.start_q)
         net = self.net.init(noise_key, wgain=wgain, em_rates_hz=em_rates_hz)
         net = self.net.set_lengths(net, self.arm.observe(arm_state).proprio)
-        err0 = jnp.linalg.norm(self.arm.observe(arm_state).hand - self.target_m)
+        err0 = self._critic_error(self.arm.observe(arm_state))
         return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), babble=babble,
                          err_hist_m=jnp.stack([err0, err0]), last_rl_ms=jnp.zeros((), jnp.float32),
                          last_scaling_ms=jnp.zeros((), jnp.float32))
+
+    def _critic_error(self, obs):
+        """What the critic compares (LoopConfig.critic_error): hand–target distance, m, or joint-space distance, rad."""
+        if self.config.critic_error == "angle":
+            return jnp.linalg.norm(obs.q - self.target_q)
+        return jnp.linalg.norm(obs.hand - self.target_m)
 
     def _reinforce(self, x, aux):
         """One critic signal applied to every plastic synapse with a live tag (spec §4). x = (wgain, pdope_ms)."""
@@ -185,7 +200,7 @@ class ClosedLoop:
         u = ro.excitation(c.network, readout, v_em_max=mp.v_em_max, window_ms=mp.mcmd_spk_wd_ms)
         arm_state = self._move_arm(state.arm, u)
         obs = self.arm.observe(arm_state)
-        err = jnp.linalg.norm(obs.hand - self.target_m)
+        err = self._critic_error(obs)
         net = self.net.set_lengths(net, obs.proprio)
         signal = jnp.zeros((), jnp.float32)
         babble, last_rl, last_scaling = state.babble, state.last_rl_ms, state.last_scaling_ms

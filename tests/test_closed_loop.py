@@ -105,6 +105,29 @@ def test_loop_config_errors_name_the_field():
 
     with pytest.raises(ConfigError, match="arm"):
         LoopConfig(arm="robot")
+    with pytest.raises(ConfigError, match="critic_error"):
+        LoopConfig(critic_error="polar")
+
+
+def test_angle_critic_compares_joint_space_distance():
+    # LoopConfig.critic_error="angle" (a diagnostic, not the original's XYERR): the critic's error is the joint-space
+    # distance to the target posture, rad; the default is the hand-target distance, m.
+    from jaxarm.loop import ClosedLoop
+    from jaxarm.task.config import START_POSTURE_RAD, TARGET_ANGLES_RAD
+
+    start, goal = np.asarray(START_POSTURE_RAD), np.asarray(TARGET_ANGLES_RAD["left"])
+    q = start + np.array([0.0, 0.3])                     # elbow flexion: the hand nears the left target, q does not
+    obs = type("Obs", (), {})()
+    errors = {}
+    for kind in ("xy", "angle"):
+        loop = ClosedLoop(LoopConfig(arm="simple", critic_error=kind))
+        errors[kind] = []
+        for posture in (start, q):
+            obs.q = jnp.asarray(posture, jnp.float32)
+            obs.hand = loop.arm.observe(loop.arm.init(obs.q)).hand
+            errors[kind].append(float(loop._critic_error(obs)))
+    np.testing.assert_allclose(errors["angle"], [np.linalg.norm(start - goal), np.linalg.norm(q - goal)], rtol=1e-5)
+    assert errors["xy"][1] < errors["xy"][0] and errors["angle"][1] > errors["angle"][0]
 
 
 def test_reaching_fitness_is_registered_and_finite():
