@@ -178,3 +178,26 @@ def test_shortfall_variants_margin_and_worst_target():
     assert float(_shortfall_with_margin(0.02)(trace, 0.04)) == pytest.approx(0.005, abs=1e-7)
     for name in ("reaching-shortfall-2cm", "reaching-shortfall-worst"):
         assert name in fitness.available()
+
+
+def test_protocol_checks_map_each_change_to_one_field(tmp_path):
+    # experiments/protocol_checks.py: each named change sets one LoopConfig field; "none" is the default protocol;
+    # a folder holding another change's run is refused by name.
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "protocol_checks.py"
+    spec = importlib.util.spec_from_file_location("protocol_checks", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    base = mod.loop_config("simple", "left", "none")
+    assert base == LoopConfig(arm="simple", task=TaskConfig(target="left"))
+    assert mod.loop_config("simple", "left", "paper-babbling").babbling.variant == "paper"
+    assert mod.loop_config("simple", "left", "reseed-noise").reseed_noise_each_epoch
+    angle = mod.loop_config("simple", "bottom", "angle-critic", epochs=2)
+    assert angle.critic_error == "angle" and angle.task.target == "bottom" and angle.task.epochs == 2
+    with pytest.raises(ValueError, match="change"):
+        mod.loop_config("simple", "left", "bigger-arm")
+    (tmp_path / "protocol_check.json").write_text(json.dumps({"preset": "original", "change": "reseed-noise"}))
+    with pytest.raises(SystemExit):
+        mod.main(["--preset", "original", "--change", "angle-critic", "--out", str(tmp_path)])
