@@ -201,3 +201,32 @@ def test_protocol_checks_map_each_change_to_one_field(tmp_path):
     (tmp_path / "protocol_check.json").write_text(json.dumps({"preset": "original", "change": "reseed-noise"}))
     with pytest.raises(SystemExit):
         mod.main(["--preset", "original", "--change", "angle-critic", "--out", str(tmp_path)])
+
+
+def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
+    # experiments/learning_curve.py: the test after epoch E is jaxarm train's test of an E-epoch run (same keys), the
+    # row before training is the naive test, and a curve killed after one epoch resumes to the same rows.
+    import importlib.util
+    from pathlib import Path
+
+    from jaxarm.experiment import Run
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "learning_curve.py"
+    spec = importlib.util.spec_from_file_location("learning_curve", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    mp, quiet = MetaParams.original(), (lambda *_: None)
+    full = mod.curve_for_target("simple", "left", mp, 2, 2, 5, tmp_path / "a", epoch_s=0.3, log=quiet)
+    assert [r["epoch"] for r in full["rows"]] == [0, 1, 2]
+    partial = mod.curve_for_target("simple", "left", mp, 2, 2, 5, tmp_path / "b", epoch_s=0.3, log=quiet, stop_after=1)
+    assert len(partial["rows"]) == 2
+    assert mod.curve_for_target("simple", "left", mp, 2, 2, 5, tmp_path / "b", epoch_s=0.3, log=quiet) == full
+
+    run = Run(LoopConfig(arm="simple", task=TaskConfig(target="left", epochs=2, epoch_duration_s=0.3)), 2, 5,
+              tmp_path / "run", mp)
+    carry, *_ = run.train(progress=False)
+    for row, res in ((full["rows"][2], run.test(carry.trained)), (full["rows"][0], run.test(run.naive()))):
+        assert row["closest_median_cm"] == round(100 * float(np.median(np.asarray(res.min_distance_m))), 3)
+        assert row["success"] == int(np.asarray(res.success).sum())
+    with pytest.raises(SystemExit, match="another run"):
+        mod.curve_for_target("simple", "left", mp, 2, 2, 6, tmp_path / "a", epoch_s=0.3, log=quiet)
