@@ -13,6 +13,10 @@ reproduce`` runs):
 * ``angle-critic``: ``critic_error="angle"``, the critic compares joint-space distances to the target posture (rad)
   instead of hand-target distances (m); a diagnostic, not the original's setting.
 
+``--set NAME=VALUE`` (repeatable) changes one of the preset's metaparameters instead (or as well), within its
+bounds, e.g. ``--set explore_tot=8`` (the code's babbling without pairs); ``--change none --set ...`` is the
+original's protocol with that set.
+
 Network i uses ``PRNGKey(seed + i)`` as in ``jaxarm reproduce`` (a); ``none`` therefore reproduces its (a) count.
 The output folder is an ordinary ``jaxarm train`` folder (results.json, trajectories.npz, reach.png, checkpoints;
 a rerun resumes it), which ``experiments/joint_excursions.py`` and ``experiments/reach_stats.py`` read.
@@ -53,22 +57,33 @@ def main(argv=None) -> int:
     ap.add_argument("--networks", type=int, default=30)
     ap.add_argument("--seed", type=int, default=0, help="network i uses PRNGKey(seed + i)")
     ap.add_argument("--epochs", type=int, default=None, help="training epochs (default: the task's 12)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="change one of the preset's metaparameters (repeatable)")
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args(argv)
     if not 1 <= args.networks <= 4096:
         ap.error(f"--networks = {args.networks}: must be in [1, 4096]")
     # Run's checkpoint identity does not hold the LoopConfig: keep one folder to one change, so a rerun resumes it
+    from jaxarm.config.validate import ConfigError
+    from jaxarm.experiment import _parse_overrides
+    from jaxarm.learning.metaparams import MetaParams
+
+    try:
+        overrides = _parse_overrides(args.set)
+    except ConfigError as e:
+        ap.error(str(e))
     marker = args.out / "protocol_check.json"
-    identity = {"preset": args.preset, "change": args.change}
+    identity = {"preset": args.preset, "change": args.change, **({"set": overrides} if overrides else {})}
     if marker.exists() and json.loads(marker.read_text()) != identity:
         ap.error(f"--out {args.out} holds a run of {json.loads(marker.read_text())}; use another folder")
-    mp = presets.load(args.preset).best_metaparams()
+    mp = MetaParams.from_dict({**presets.load(args.preset).best_metaparams().to_dict(), **overrides})
     args.out.mkdir(parents=True, exist_ok=True)
     marker.write_text(json.dumps(identity))
     run = Run(loop_config(args.arm, args.target, args.change, args.epochs), args.networks, args.seed, args.out, mp)
     carry, history, wall, epochs_run, compile_s = run.train(progress=False)
     res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, wall, epochs_run, compile_s)
-    print(f"{args.preset}, {args.arm} arm, {args.target} target, change {args.change}: {res['success_count']}/"
+    changed = "".join(f", {k}={v:g}" for k, v in overrides.items())
+    print(f"{args.preset}{changed}, {args.arm} arm, {args.target} target, change {args.change}: {res['success_count']}/"
           f"{args.networks} reached (naive {res['naive']['success_count']}/{args.networks}) -> {args.out}")
     return 0
 

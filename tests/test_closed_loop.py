@@ -201,6 +201,15 @@ def test_protocol_checks_map_each_change_to_one_field(tmp_path):
     (tmp_path / "protocol_check.json").write_text(json.dumps({"preset": "original", "change": "reseed-noise"}))
     with pytest.raises(SystemExit):
         mod.main(["--preset", "original", "--change", "angle-critic", "--out", str(tmp_path)])
+    # --set: a metaparameter outside its bounds is refused by name, before any folder is written; a folder holding
+    # the same change without the --set is another run
+    with pytest.raises(SystemExit):
+        mod.main(["--preset", "original", "--change", "none", "--set", "explore_tot=99", "--out",
+                  str(tmp_path / "bad")])
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(SystemExit):
+        mod.main(["--preset", "original", "--change", "reseed-noise", "--set", "explore_tot=8", "--out",
+                  str(tmp_path)])
 
 
 def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
