@@ -4,7 +4,7 @@
         --epochs 24 --out runs/curve-simple-shortfall-long
     python experiments/learning_curve.py --from runs/curve-simple-shortfall-long --markdown   # print a finished one
 
-A preset's best set is trained with ``--networks`` seeds per target (network i uses ``PRNGKey(seed + i)``, as
+A preset's best set (with ``--set NAME=VALUE`` changes, if any) is trained with ``--networks`` seeds per target (network i uses ``PRNGKey(seed + i)``, as
 ``jaxarm reproduce`` (a)); after every epoch the networks are tested exactly as ``jaxarm train`` tests them (1 s,
 learning off, same test keys), so the count after epoch 12 is the 12-epoch reproduction's count to the network, and
 the count after epoch E is what ``jaxarm reproduce --epochs E`` would report. Epoch 0 is the naive network.
@@ -116,7 +116,8 @@ def plot(result: dict, path: Path) -> None:
     axes[1].axhline(4.0, color="k", lw=0.8, ls=":")
     axes[1].set(xlabel=xlabel, ylabel="median closest approach, cm")
     axes[0].legend(title="target")
-    fig.suptitle(f"{result['preset']}, {result['arm']} arm, seeds {result['seed']}–{result['seed'] + result['networks'] - 1}",
+    changed = "".join(f", {k}={v:g}" for k, v in result.get("set", {}).items())
+    fig.suptitle(f"{result['preset']}{changed}, {result['arm']} arm, seeds {result['seed']}–{result['seed'] + result['networks'] - 1}",
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -132,6 +133,8 @@ def main(argv=None) -> int:
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
     ap.add_argument("--networks", type=int, default=30)
     ap.add_argument("--seed", type=int, default=0, help="network i uses PRNGKey(seed + i)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="change one of the preset's metaparameters (repeatable)")
     ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
     ap.add_argument("--from", dest="from_", type=Path, help="print a finished run's curve instead of training")
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
@@ -148,20 +151,28 @@ def main(argv=None) -> int:
         ap.error(f"--networks = {args.networks}: must be in [1, 4096]")
     if not 0.01 <= args.epoch_s <= 600:
         ap.error(f"--epoch-s = {args.epoch_s}: must be in [0.01, 600] s")
+    from jaxarm.config.validate import ConfigError
     from jaxarm.evolve import presets
+    from jaxarm.experiment import _parse_overrides
+    from jaxarm.learning.metaparams import MetaParams
     from jaxarm.task.config import TARGET_ANGLES_RAD
+
+    try:
+        overrides = _parse_overrides(args.set)
+    except ConfigError as e:
+        ap.error(str(e))
 
     targets = [t.strip() for t in args.targets.split(",") if t.strip()]
     for t in targets:
         if t not in TARGET_ANGLES_RAD:
             ap.error(f"--targets: unknown target {t!r}; known: {', '.join(TARGET_ANGLES_RAD)}")
-    mp = presets.load(args.preset).best_metaparams()
+    mp = MetaParams.from_dict({**presets.load(args.preset).best_metaparams().to_dict(), **overrides})
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     curves = [curve_for_target(args.arm, t, mp, args.epochs, args.networks, args.seed, args.out, args.epoch_s)
               for t in targets]
     result = {"command": "python " + " ".join([sys.argv[0]] + list(argv if argv is not None else sys.argv[1:])),
-              "preset": args.preset, "arm": args.arm, "networks": args.networks, "seed": args.seed,
+              "preset": args.preset, "set": overrides, "arm": args.arm, "networks": args.networks, "seed": args.seed,
               "epochs": args.epochs, "epoch_s": args.epoch_s, "metaparams": mp.to_dict(), "fields": FIELDS, "curves": curves,
               "wall_s_this_invocation": round(time.perf_counter() - t0, 1)}
     (args.out / "learning_curve.json").write_text(json.dumps(result, indent=1))

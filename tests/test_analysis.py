@@ -261,3 +261,29 @@ def test_joint_excursions_splits_reached_and_missed(tmp_path):
     np.testing.assert_allclose(row["median_excursion_rad_success"], (0.4, 0.0), atol=1e-6)
     np.testing.assert_allclose(row["median_excursion_rad_failure"], (0.05, 0.4), atol=1e-6)
     assert "| left | 1/3 | 2/2 | 0/1 | 0.40 / 0.00 | 0.05 / 0.40 |" in mod.markdown([row])
+
+
+def test_selection_counts_reads_the_search_ranking_and_its_own_evaluations(tmp_path):
+    # experiments/selection_counts.py: the top sets are taken in the search's order (search_rank, not the
+    # re-evaluation's rank) and counted on the search's own success_rate; a folder without a search is refused.
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "selection_counts.py"
+    spec = importlib.util.spec_from_file_location("selection_counts", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    rows = [{"rank": 1, "search_rank": 3, "metrics": {"success_rate": 0.0}},
+            {"rank": 2, "search_rank": 1, "metrics": {"success_rate": 1.0}},
+            {"rank": 3, "search_rank": 2, "metrics": {"success_rate": 0.5}}]
+    (tmp_path / "top_k.json").write_text(json.dumps({"top_k": rows}))
+    (tmp_path / "history.json").write_text(json.dumps({
+        "config": {"seed_mode": "fixed", "seeds_per_candidate": 1, "population_size": 16},
+        "fitness": {"name": "reaching", "arm": "simple", "targets": ["left"]}, "generations_done": 8}))
+    two = mod.selection_count(tmp_path, top=2)
+    assert (two["top"], two["reached"], two["candidates_evaluated"]) == (2, 1.5, 128)
+    assert mod.selection_count(tmp_path)["reached"] == 1.5
+    assert "1.5/3" in mod.markdown([mod.selection_count(tmp_path)])
+    with pytest.raises(SystemExit, match="not a finished"):
+        mod.selection_count(tmp_path / "nothing")
