@@ -9,7 +9,8 @@ evolutionary search. The original model is deterministic with fixed seeds (one w
 selection evaluations. ``jaxarm evolve --seed-mode fixed --seeds-per-candidate 1`` searches that way (every candidate
 trains the same network), and this script reads what the search recorded for its top ``--top`` sets (``top_k.json``,
 mean ``success_rate`` over each set's selection seeds and targets): how many reached, i.e. the paper's count made
-the paper's way. ``jaxarm reproduce`` (b) instead trains each of those sets with a new seed, which is what a user
+the paper's way; and, from ``history.json``, how many of *all* the candidates reached (the pool the top sets were
+drawn from; networks-equivalent when a candidate has several evaluations). ``jaxarm reproduce`` (b) instead trains each of those sets with a new seed, which is what a user
 who takes a set away gets; the difference between the two is the selection bias.
 
 For a search with several seeds per candidate or several targets the count is the sum over sets of the fraction of
@@ -39,18 +40,22 @@ def selection_count(search_dir: Path, top: int = 30) -> dict:
     cfg, fit = history["config"], history["fitness"]
     evaluations = int(history["generations_done"]) * int(cfg["population_size"])
     reached = sum(float(r["metrics"]["success_rate"]) for r in rows)
+    # every candidate of the search, from the per-generation mean success (NaN-free generations only)
+    means = [m for m in history["history"]["metrics_mean"].get("success_rate", []) if m is not None and m == m]
+    pool = sum(means) * int(cfg["population_size"]) if means else None
     return {"search": str(search_dir), "fitness": fit["name"], "arm": fit["arm"], "targets": fit["targets"],
             "seed_mode": cfg["seed_mode"], "seeds_per_candidate": int(cfg["seeds_per_candidate"]),
-            "candidates_evaluated": evaluations, "top": len(rows), "reached": round(reached, 2),
-            "fraction": round(reached / len(rows), 4)}
+            "candidates_evaluated": evaluations, "candidates_reached": None if pool is None else round(pool, 2),
+            "top": len(rows), "reached": round(reached, 2), "fraction": round(reached / len(rows), 4)}
 
 
 def markdown(rows: list[dict]) -> str:
-    lines = ["| search | fitness | targets | seeds per candidate (mode) | candidates | top sets reaching, on their "
-             "selection runs |", "|---|---|---|---|---|---|"]
+    lines = ["| search | fitness | targets | seeds per candidate (mode) | candidates evaluated | of which reached | "
+             "top sets reaching, on their selection runs |", "|---|---|---|---|---|---|---|"]
     for r in rows:
+        pool = "–" if r["candidates_reached"] is None else f"{r['candidates_reached']:g}"
         lines.append(f"| {r['search']} | {r['fitness']} | {', '.join(r['targets'])} | {r['seeds_per_candidate']} "
-                     f"({r['seed_mode']}) | {r['candidates_evaluated']} | {r['reached']:g}/{r['top']} |")
+                     f"({r['seed_mode']}) | {r['candidates_evaluated']} | {pool} | {r['reached']:g}/{r['top']} |")
     return "\n".join(lines)
 
 

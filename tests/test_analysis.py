@@ -280,9 +280,10 @@ def test_selection_counts_reads_the_search_ranking_and_its_own_evaluations(tmp_p
     (tmp_path / "top_k.json").write_text(json.dumps({"top_k": rows}))
     (tmp_path / "history.json").write_text(json.dumps({
         "config": {"seed_mode": "fixed", "seeds_per_candidate": 1, "population_size": 16},
-        "fitness": {"name": "reaching", "arm": "simple", "targets": ["left"]}, "generations_done": 8}))
+        "fitness": {"name": "reaching", "arm": "simple", "targets": ["left"]}, "generations_done": 8,
+        "history": {"metrics_mean": {"success_rate": [0.5, 0.25] + [float("nan")] * 6}}}))
     two = mod.selection_count(tmp_path, top=2)
-    assert (two["top"], two["reached"], two["candidates_evaluated"]) == (2, 1.5, 128)
+    assert (two["top"], two["reached"], two["candidates_evaluated"], two["candidates_reached"]) == (2, 1.5, 128, 12)
     assert mod.selection_count(tmp_path)["reached"] == 1.5
     assert "1.5/3" in mod.markdown([mod.selection_count(tmp_path)])
     with pytest.raises(SystemExit, match="not a finished"):
