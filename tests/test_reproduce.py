@@ -207,3 +207,22 @@ def test_every_shipped_preset_loads_and_is_within_bounds():
         assert p.name == name and p.arms
         if name != "original":
             assert p.provenance.get("command") and "seed" in p.provenance
+
+
+def test_a_one_target_preset_reproduces_its_target_by_default(tmp_path, preset_dir):
+    """A preset tuned for one target (a one-target search or re-ranking) runs that target when --targets is not
+    given; a target it was not tuned for is run when asked, with a note saying so."""
+    from jaxarm.evolve.reproduce import reproduce
+
+    quad = presets.load("quad", preset_dir)
+    kw = dict(networks=2, epochs=2, epoch_s=0.2, test_s=0.2, progress=False)
+    left_only = presets.Preset(name="left-only", description="", arms=("simple",), best=quad.best, targets=("left",))
+    lines = []
+    table = reproduce(left_only, "simple", None, tmp_path / "a", log=lines.append, **kw)
+    assert list(table["targets"]) == ["left"] and not any("tuned for the" in ln for ln in lines)
+    bottom_only = presets.Preset(name="bottom-only", description="", arms=("simple",), best=quad.best,
+                                 targets=("bottom",))
+    lines = []
+    table = reproduce(bottom_only, "simple", ["left"], tmp_path / "b", log=lines.append, **kw)
+    assert list(table["targets"]) == ["left"]
+    assert "note: preset 'bottom-only' was tuned for the bottom target; running it on left too" in lines

@@ -42,6 +42,8 @@ PAPER_N = 30
 PAPER_SOURCE = "Dura-Bernal et al. 2015, §3.2: trained networks whose hand entered the 4 cm circle in the 1 s test"
 TABLE_FILE = "success_table.json"
 MODES = ("seeds", "top30")
+#: Targets reproduced when neither --targets nor the preset names any: the paper's two.
+DEFAULT_TARGETS = ("left", "bottom")
 
 
 def _median_of(results: dict, key: str):
@@ -114,7 +116,8 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
               epochs: int | None = None, epoch_s: float = 30.0, test_s: float = 1.0, top: int = preset_lib.MAX_TOP,
               backend: str = "fast", progress: bool = True, command: str | None = None,
               stop_after: int | None = None, log=print) -> dict | None:
-    """Run (or resume) modes (a) and (b) for every target; write and return the success table. ``stop_after``:
+    """Run (or resume) modes (a) and (b) for every target (``targets`` None: the preset's own targets if it names
+    any, else :data:`DEFAULT_TARGETS`); write and return the success table. ``stop_after``:
     stop the first unfinished folder after that many epochs of this call and return None (tests use it to
     interrupt a run)."""
     from jaxarm.experiment import Run, SetsRun
@@ -130,7 +133,9 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
         raise ConfigError(f"--seed = {seed}: must be >= 0")
     if epochs is not None and not 1 <= epochs <= 1000:
         raise ConfigError(f"--epochs = {epochs}: must be in [1, 1000]")
-    targets = list(targets)
+    # A preset tuned for some targets (a one-target search, or a re-ranking for one target) reproduces those by
+    # default; the paper's two otherwise.
+    targets = list(targets if targets is not None else (preset.targets or DEFAULT_TARGETS))
     if not targets or len(set(targets)) != len(targets):
         raise ConfigError(f"--targets = {','.join(targets)!r}: give one or more distinct targets")
     best = preset.best_metaparams()
@@ -140,6 +145,10 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
         else None
     if arm not in preset.arms:
         log(f"note: preset {preset.name!r} was tuned for the {'/'.join(preset.arms)} arm; running it on the {arm} arm")
+    other = [t for t in targets if preset.targets is not None and t not in preset.targets]
+    if other:
+        log(f"note: preset {preset.name!r} was tuned for the {','.join(preset.targets)} target; running it on "
+            f"{','.join(other)} too")
     no_top = None if top_sets else (f"preset {preset.name!r} has no top list (only its best set is known)")
 
     def config(target, n_epochs):
@@ -246,7 +255,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), help="arm (required for a reproduction)")
     ap.add_argument("--preset", help="preset name (see --list-presets) or the path of a preset .json file")
     ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
-    ap.add_argument("--targets", default="left,bottom", help="comma-separated targets (default left,bottom)")
+    ap.add_argument("--targets", default=None,
+                    help="comma-separated targets (default: the preset's own targets if it was tuned for some, "
+                         "else left,bottom)")
     ap.add_argument("--networks", type=int, default=30, help="(a): seeds of the best set per target (default 30)")
     ap.add_argument("--top", type=int, default=preset_lib.MAX_TOP,
                     help="(b): at most this many of the preset's top sets (default 30)")
@@ -292,7 +303,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         if missing:
             ap.error(f"{', '.join(missing)} required (or --list-presets / --make-preset)")
         preset = preset_lib.load(args.preset, args.preset_dir)
-        targets = [t.strip() for t in args.targets.split(",") if t.strip()]
+        targets = None if args.targets is None else [t.strip() for t in args.targets.split(",") if t.strip()]
         table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
                           epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
                           backend=args.backend, progress=not args.no_progress,
