@@ -1,6 +1,7 @@
 """Tests of the compiled evolutionary search (jaxarm.evolve) on small sizes, with benchmark fitness functions."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -285,7 +286,9 @@ def test_killed_reevaluation_resumes_where_it_stopped(tmp_path):
     batched = make_reevaluate(fitness, SMALL, 3)(key, units)
     np.testing.assert_allclose([c["fitness"] for c in saved["candidates"]], batched.fitness, rtol=1e-5, atol=1e-7)
 
-    (tmp_path / REEVALUATION_FILE).write_text(json.dumps({**saved, "candidates": saved["candidates"][:4]}))
+    # cut back in the format of files written before each result carried its unit (matched by position in "units")
+    old_format = [{k: v for k, v in c.items() if k != "unit"} for c in saved["candidates"][:4]]
+    (tmp_path / REEVALUATION_FILE).write_text(json.dumps({**saved, "candidates": old_format}))
     lines = []
     run_search(fitness, SMALL, config, tmp_path, reevaluate_seeds=3, log=lines.append)
     assert any("resuming the re-evaluation: 4/10" in ln for ln in lines)
@@ -296,6 +299,28 @@ def test_killed_reevaluation_resumes_where_it_stopped(tmp_path):
     run_search(fitness, SMALL, config, tmp_path, reevaluate_seeds=2, log=lines.append)
     assert not any("resuming the re-evaluation" in ln for ln in lines)
     assert sum(ln.startswith("re-evaluated ") and "/10:" in ln for ln in lines) == 10
+
+
+def test_extended_search_reevaluates_only_new_archive_members(tmp_path):
+    """Every candidate is re-evaluated with the same keys, so its result depends on it alone: after the search is
+    extended, saved results are reused for the members still in the archive and only the new ones are evaluated,
+    and top_k.json equals a re-evaluation of the extended archive from scratch."""
+    fitness = fit.make_quadratic(0.05)
+    short = EvolveConfig(strategy=CHEAP, population_size=8, generations=2, chunk_size=1, top_k=10)
+    run_search(fitness, SMALL, short, tmp_path / "a", reevaluate_seeds=2, log=lambda _: None)
+    before = {tuple(c["unit"]) for c in json.loads((tmp_path / "a" / REEVALUATION_FILE).read_text())["candidates"]}
+    longer = dataclasses.replace(short, generations=4)
+    lines = []
+    result = run_search(fitness, SMALL, longer, tmp_path / "a", reevaluate_seeds=2, log=lines.append)
+    arc = result.state.archive
+    units = [tuple(float(x) for x in u) for u in np.asarray(arc.unit, np.float32)[np.isfinite(np.asarray(arc.fitness))]]
+    kept = sum(u in before for u in units)
+    assert 0 < kept < len(units), kept   # the extension both kept and replaced archive members
+    assert any(f"resuming the re-evaluation: {kept}/{len(units)}" in ln for ln in lines)
+    assert sum(ln.startswith("re-evaluated ") and f"/{len(units)}:" in ln for ln in lines) == len(units) - kept
+    run_search(fitness, SMALL, longer, tmp_path / "b", reevaluate_seeds=2, log=lambda _: None)
+    assert (json.loads((tmp_path / "a" / TOP_K_FILE).read_text())["top_k"]
+            == json.loads((tmp_path / "b" / TOP_K_FILE).read_text())["top_k"])
 
 
 def test_cma_es_finds_the_benchmark_optimum():

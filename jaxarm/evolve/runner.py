@@ -10,8 +10,9 @@ Files in the output folder:
 * ``top_k.json``: the best ``top_k`` candidates of the whole search, best first, as complete metaparameter sets;
   with ``reevaluate_seeds``, each also evaluated again with that many fresh seeds after the search, and the list
   ranked by that re-evaluation (the search's own ranking favours lucky draws of a noisy fitness).
-* ``reevaluation.json``: the re-evaluation's results so far, one candidate at a time, so a killed re-evaluation
-  resumes where it stopped.
+* ``reevaluation.json``: the re-evaluation's results so far, one candidate at a time with its unit-cube
+  coordinates, so a killed re-evaluation resumes where it stopped and an extended search re-evaluates only the
+  candidates new to its archive.
 * ``convergence.png``: best, median and best-so-far fitness and failures per generation.
 
 Non-finite numbers are written to JSON as ``null``.
@@ -246,9 +247,12 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
 
 def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict | None = None):
     """Re-evaluate the archive one candidate at a time (one compiled call each, the same fresh keys for all), with
-    a progress line per candidate and each result saved to ``reevaluation.json`` as it comes: a killed
-    re-evaluation resumes at the first candidate not yet done (a file for other seeds, another training length or
-    other candidates is ignored)."""
+    a progress line per candidate and each result saved to ``reevaluation.json`` as it comes.
+
+    Every candidate is evaluated with the same keys, so a result depends on the candidate alone: saved results are
+    reused for every archive member they were computed for. A killed re-evaluation resumes at the first candidate
+    not yet done, and after a search is extended only the candidates new to the archive are evaluated. A file for
+    other seeds, another training length or other targets is ignored."""
     fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
     filled = np.isfinite(np.asarray(state.archive.fitness))
     units = np.asarray(state.archive.unit, np.float32)[filled]
@@ -256,29 +260,43 @@ def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict
         return None
     reevaluate = make_reevaluate(fitness.fn, space, seeds, config.seed_reduce)
     key = jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM)
+    unit_rows = [[float(x) for x in u] for u in units]
     identity = {"seeds": seeds, "seed_reduce": config.seed_reduce,
-                "network_seconds_per_eval": fitness.network_seconds_per_eval,
-                "units": [[float(x) for x in u] for u in units]}
+                "network_seconds_per_eval": fitness.network_seconds_per_eval}
     if meta and meta.get("targets") is not None:   # only when given: files written before this key still resume
         identity["targets"] = list(meta["targets"])
     path = out / REEVALUATION_FILE
-    done: list[dict] = []
+    saved_by_unit: dict[tuple, dict] = {}
     if path.exists():
         saved = json.loads(path.read_text())
         if {k: saved.get(k) for k in identity} == identity and saved.get("targets") == identity.get("targets"):
-            done = saved.get("candidates", [])[:units.shape[0]]
-            if done:
-                log(f"resuming the re-evaluation: {len(done)}/{units.shape[0]} candidates done ({path})")
+            # Files written before results carried their unit list them in the order of "units".
+            for i, c in enumerate(saved.get("candidates", [])):
+                u = c.get("unit", (saved.get("units") or [])[i] if i < len(saved.get("units") or []) else None)
+                if u is not None:
+                    saved_by_unit[tuple(float(x) for x in u)] = {**c, "unit": [float(x) for x in u]}
+    done: list[dict | None] = [saved_by_unit.get(tuple(u)) for u in unit_rows]
+    n_reused = sum(c is not None for c in done)
+    if n_reused:
+        log(f"resuming the re-evaluation: {n_reused}/{units.shape[0]} candidates done ({path})")
+
+    def save():
+        _write_json(path, {**identity, "units": unit_rows, "candidates": [c for c in done if c is not None]})
+
     t_all = time.perf_counter()
-    for i in range(len(done), units.shape[0]):
+    for i in range(units.shape[0]):
+        if done[i] is not None:
+            continue
         t0 = time.perf_counter()
         r = jax.device_get(jax.block_until_ready(reevaluate(key, units[i:i + 1])))
-        done.append({"fitness": _num(r.fitness[0]), "fitness_per_seed": [_num(x) for x in r.fitness_per_seed[0]],
-                     "metrics": {m: _num(v[0]) for m, v in r.metrics.items()}})
-        _write_json(path, {**identity, "candidates": done})
-        log(f"re-evaluated {i + 1}/{units.shape[0]}: fitness {_fmt(done[-1]['fitness'])} over {seeds} fresh seeds "
+        done[i] = {"unit": unit_rows[i], "fitness": _num(r.fitness[0]),
+                   "fitness_per_seed": [_num(x) for x in r.fitness_per_seed[0]],
+                   "metrics": {m: _num(v[0]) for m, v in r.metrics.items()}}
+        save()
+        log(f"re-evaluated {i + 1}/{units.shape[0]}: fitness {_fmt(done[i]['fitness'])} over {seeds} fresh seeds "
             f"(search fitness {_fmt(float(np.asarray(state.archive.fitness)[filled][i]))}) | "
             f"{time.perf_counter() - t0:.1f} s")
+    save()
     nan = float("nan")
     as_array = lambda xs: np.asarray([nan if x is None else x for x in xs], np.float32)   # noqa: E731
     result = Reevaluation(
