@@ -306,10 +306,10 @@ def test_extended_search_reevaluates_only_new_archive_members(tmp_path):
     extended, saved results are reused for the members still in the archive and only the new ones are evaluated,
     and top_k.json equals a re-evaluation of the extended archive from scratch."""
     fitness = fit.make_quadratic(0.05)
-    short = EvolveConfig(strategy=CHEAP, population_size=8, generations=2, chunk_size=1, top_k=10)
+    short = EvolveConfig(strategy=CHEAP, population_size=8, generations=1, chunk_size=1, top_k=10)
     run_search(fitness, SMALL, short, tmp_path / "a", reevaluate_seeds=2, log=lambda _: None)
     before = {tuple(c["unit"]) for c in json.loads((tmp_path / "a" / REEVALUATION_FILE).read_text())["candidates"]}
-    longer = dataclasses.replace(short, generations=4)
+    longer = dataclasses.replace(short, generations=2)
     lines = []
     result = run_search(fitness, SMALL, longer, tmp_path / "a", reevaluate_seeds=2, log=lines.append)
     arc = result.state.archive
