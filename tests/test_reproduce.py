@@ -226,3 +226,24 @@ def test_a_one_target_preset_reproduces_its_target_by_default(tmp_path, preset_d
     table = reproduce(bottom_only, "simple", ["left"], tmp_path / "b", log=lines.append, **kw)
     assert list(table["targets"]) == ["left"]
     assert "note: preset 'bottom-only' was tuned for the bottom target; running it on left too" in lines
+
+
+def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
+    """`--set NAME=VALUE` replaces that metaparameter in the best set (a) and in each top set (b), is recorded in
+    success_table.json, and a value outside its bound is refused naming the field and its range."""
+    out = tmp_path / "set"
+    assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--top", "2", "--out", str(out),
+                 "--set", "explore_tot=8", *TINY]) == 0
+    table = json.loads((out / "success_table.json").read_text())
+    assert table["set"] == {"explore_tot": 8.0}
+    p = presets.load("quad", preset_dir)
+    a = json.loads((out / "left" / "seeds" / "results.json").read_text())["config"]["metaparams"]
+    b = json.loads((out / "left" / "top30" / "results.json").read_text())["config"]["metaparams"]
+    assert a["explore_tot"] == 8.0 and [m["explore_tot"] for m in b] == [8.0, 8.0]
+    assert {k: v for k, v in a.items() if k != "explore_tot"} == \
+        {k: v for k, v in p.best_metaparams().to_dict().items() if k != "explore_tot"}
+    capsys.readouterr()
+    assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--out", str(tmp_path / "bad"),
+                 "--set", "explore_tot=99", *TINY]) == 2
+    err = capsys.readouterr().err
+    assert "explore_tot" in err and "outside its range" in err

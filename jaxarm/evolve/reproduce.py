@@ -115,13 +115,16 @@ def _epochs_of(sets, what: str) -> int:
 def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networks: int = 30, seed: int = 0,
               epochs: int | None = None, epoch_s: float = 30.0, test_s: float = 1.0, top: int = preset_lib.MAX_TOP,
               backend: str = "fast", progress: bool = True, command: str | None = None,
-              stop_after: int | None = None, log=print) -> dict | None:
+              overrides: dict[str, float] | None = None, stop_after: int | None = None,
+              log=print) -> dict | None:
     """Run (or resume) modes (a) and (b) for every target (``targets`` None: the preset's own targets if it names
-    any, else :data:`DEFAULT_TARGETS`); write and return the success table. ``stop_after``:
+    any, else :data:`DEFAULT_TARGETS`); write and return the success table. ``overrides`` ({name: value}, each
+    within its bound; ``--set``) replaces those metaparameters in the best set and in every top set alike (an
+    ``epochs`` override sets the training length, as ``--epochs`` does). ``stop_after``:
     stop the first unfinished folder after that many epochs of this call and return None (tests use it to
     interrupt a run)."""
     from jaxarm.experiment import Run, SetsRun
-    from jaxarm.learning.metaparams import stack
+    from jaxarm.learning.metaparams import MetaParams, stack
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
 
@@ -138,8 +141,12 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
     targets = list(targets if targets is not None else (preset.targets or DEFAULT_TARGETS))
     if not targets or len(set(targets)) != len(targets):
         raise ConfigError(f"--targets = {','.join(targets)!r}: give one or more distinct targets")
+    overrides = dict(overrides or {})
     best = preset.best_metaparams()
     top_sets = preset.top_metaparams(top)
+    if overrides:
+        best = MetaParams.from_dict({**best.to_dict(), **overrides})
+        top_sets = [MetaParams.from_dict({**m.to_dict(), **overrides}) for m in top_sets]
     epochs_a = epochs if epochs is not None else _epochs_of([best], f"preset {preset.name!r} best")
     epochs_b = (epochs if epochs is not None else _epochs_of(top_sets, f"preset {preset.name!r} top")) if top_sets \
         else None
@@ -197,7 +204,7 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
     table = {
         "arm": arm, "backend": backend, "preset": preset.name, "preset_description": preset.description,
         "preset_arms": list(preset.arms), "preset_provenance": preset.provenance,
-        "command": command, "seed": seed,
+        "command": command, "seed": seed, "set": overrides,
         "protocol": {"networks_seeds": networks, "top_sets": len(top_sets), "epochs_seeds": epochs_a,
                      "epochs_top30": epochs_b, "epoch_s": epoch_s, "test_s": test_s,
                      "success_radius_m": configs[targets[0]][0].task.success_radius_m,
@@ -265,6 +272,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--epochs", type=int, default=None,
                     help="training epochs (default: the preset's `epochs` metaparameter, 12); fewer for a quick run")
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
+    ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
+                    help="change this metaparameter in the best set and in every top set (repeatable; e.g. "
+                         "explore_tot=8); recorded in success_table.json")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
     ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
     ap.add_argument("--no-progress", action="store_true")
@@ -304,7 +314,11 @@ def reproduce_main(argv: list[str] | None = None) -> int:
             ap.error(f"{', '.join(missing)} required (or --list-presets / --make-preset)")
         preset = preset_lib.load(args.preset, args.preset_dir)
         targets = None if args.targets is None else [t.strip() for t in args.targets.split(",") if t.strip()]
+        from jaxarm.experiment import _parse_overrides
+
+        overrides = _parse_overrides(args.overrides)
         table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
+                          overrides=overrides,
                           epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
                           backend=args.backend, progress=not args.no_progress,
                           command=shlex.join(["jaxarm", "reproduce", *argv]))
