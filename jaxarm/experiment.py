@@ -31,6 +31,7 @@ from jaxarm.analysis.reach import reach_metrics
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, LoopConfig
+from jaxarm.network import NetworkConfig
 from jaxarm.network.wiring import PATHWAYS
 from jaxarm.task.config import TARGET_ANGLES_RAD, TaskConfig
 from jaxarm.train import EpochSummary, Trained, make_train
@@ -56,9 +57,13 @@ class Run:
         self.fns, self.init_fn, self.epoch_fn, self.test_fn = _compiled(config)
 
     def meta(self) -> dict:
-        return {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
+        meta = {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
                 "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
                 "epoch_s": self.config.task.epoch_duration_s, "metaparams": self.mp.to_dict()}
+        # Only a non-default clock step is recorded, so folders written before --dt-ms existed still resume.
+        if self.config.network.dt_ms != NetworkConfig().dt_ms:
+            meta["dt_ms"] = self.config.network.dt_ms
+        return meta
 
     def empty_history(self, carry) -> EpochSummary:
         one = jax.eval_shape(lambda c: self.epoch_fn(c, self.mp)[1], carry)
@@ -266,7 +271,8 @@ def _configs(args) -> list[tuple[str, LoopConfig]]:
     for target in args.target:
         task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
                           test_duration_s=args.test_s)
-        out.append((target, LoopConfig(arm=args.arm, backend=args.backend, task=task)))
+        network = NetworkConfig(dt_ms=getattr(args, "dt_ms", None) or NetworkConfig().dt_ms)
+        out.append((target, LoopConfig(arm=args.arm, backend=args.backend, network=network, task=task)))
     return out
 
 
@@ -285,6 +291,9 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
                     help="train and test with this metaparameter changed from the authors' value (repeatable; "
                          "e.g. v_em_max=60); the training length is --epochs")
+    ap.add_argument("--dt-ms", type=float, default=None,
+                    help=f"network clock step, ms (default {NetworkConfig().dt_ms}; must divide 1 ms, e.g. 0.1 to "
+                         "check that a result does not depend on the step)")
     args = ap.parse_args(argv)
     _check(ap, args)
     try:
@@ -336,7 +345,7 @@ def _parse_overrides(items: list[str]) -> dict[str, float]:
 def test_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="jaxarm test", description="Re-test networks trained by `jaxarm train`.")
     ap.add_argument("--from", dest="src", type=Path, required=True, help="a `jaxarm train` output folder")
-    ap.add_argument("--test-s", type=float, default=None, help="test duration, s (default: as trained)")
+    ap.add_argument("--test-s", type=float, default=None, help="test duration, s (default: 1, the paper's; the training run's --test-s is not recorded)")
     ap.add_argument("--out", type=Path, default=None, help="where to write (default: SRC/test)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
                     help="test with this metaparameter changed (repeatable; e.g. v_em_max=60 or "
@@ -355,7 +364,8 @@ def test_main(argv: list[str] | None = None) -> int:
                          "with the same options to finish it first")
     task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
                       test_duration_s=args.test_s or 1.0)
-    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], task=task)
+    network = NetworkConfig(dt_ms=meta.get("dt_ms", NetworkConfig().dt_ms))
+    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
     out = args.out or args.src / "test"
     if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
         from jaxarm.learning.metaparams import stack

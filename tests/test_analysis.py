@@ -229,6 +229,37 @@ def test_paper_stats_report_successful_networks_beside_the_paper(tmp_path):
         mod.run_folders([tmp_path])
 
 
+def test_original_test_comparison_places_the_original_run_among_ours(tmp_path):
+    import json
+
+    from jaxarm.analysis import paper as mod
+
+    # four networks whose distance falls linearly from 15.1 cm to 0, 2, 4 and 6 cm at 1 s
+    t = np.arange(101) * 0.01
+    ends = np.array([0.0, 2.0, 4.0, 6.0])
+    dist = (15.1 + (ends[:, None] - 15.1) * t[None]) / 100.0
+    folder = tmp_path / "run"
+    folder.mkdir()
+    res = {"target": "left", "success_count": 3, "config": {"arm": "simple"},
+           "test_rates_hz": {"ES": 5.0, "IS": 5.0, "ISL": 3.0, "EM": 4.0, "IM": 9.0, "IML": 3.0}}
+    (folder / "results.json").write_text(json.dumps(res))
+    q = np.zeros((4, 101, 2)) + np.array([0.62, 1.53])
+    q[:, -1] = [[0.8, 1.6], [0.9, 1.6], [1.0, 1.7], [1.1, 1.7]]
+    np.savez(folder / "trajectories.npz", t=t, distance=dist, q=q)
+    c = mod.original_test_comparison(folder)
+    rows = {r["t_ms"]: r for r in c["distance"]}
+    assert rows[0]["original_percentile"] == 50.0                 # all four tie with the original's 15.1 cm
+    assert rows[1000]["median_cm"] == pytest.approx(3.0)
+    assert rows[1000]["original_percentile"] == 50.0              # 3.3 cm: above 0 and 2, below 4 and 6
+    assert c["final"]["original_percentile"] == 50.0 and c["closest"]["original_percentile"] == 25.0   # 1.59 > 0
+    assert c["final_q_rad"]["median"] == pytest.approx([0.95, 1.65])
+    assert c["test_rates_hz"]["original"]["EM"] == 5.1 and c["test_rates_hz"]["ours"]["EM"] == 4.0
+    res["target"] = "bottom"
+    (folder / "results.json").write_text(json.dumps(res))
+    with pytest.raises(ValueError, match="left target"):
+        mod.original_test_comparison(folder)
+
+
 def test_joint_excursions_splits_reached_and_missed(tmp_path):
     # experiments/joint_excursions.py: the geometry of the left target (shoulder flexion is the way there; the elbow
     # alone also brings the hand closer but stops ~10 cm short) and the success split of a run's joint excursions.

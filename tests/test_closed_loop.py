@@ -94,7 +94,7 @@ def test_train_cli_writes_results(tmp_path, capsys):
     t30 = json.loads((tmp_path / "t30" / "results.json").read_text())
     assert t30["config"]["metaparams"]["v_em_max"] == 30.0
     for bad, msg in ((["--set", "v_em_max=5"], "outside its range"), (["--set", "nope=1"], "expected NAME=VALUE"),
-                     (["--set", "epochs=3"], "use --epochs")):
+                     (["--set", "epochs=3"], "use --epochs"), (["--dt-ms", "0.3"], "dt_ms = 0.3: must divide 1 ms")):
         with pytest.raises(SystemExit):
             main(["train", "--out", str(tmp_path / "bad")] + bad)
         assert msg in capsys.readouterr().err
@@ -239,3 +239,17 @@ def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
         assert row["success"] == int(np.asarray(res.success).sum())
     with pytest.raises(SystemExit, match="another run"):
         mod.curve_for_target("simple", "left", mp, 2, 2, 6, tmp_path / "a", epoch_s=0.3, log=quiet)
+
+
+def test_train_cli_clock_step_is_recorded_and_kept_by_test(tmp_path):
+    from jaxarm.cli import main
+
+    out = tmp_path / "dt"
+    assert main(["train", "--networks", "1", "--epochs", "1", "--epoch-s", "0.2", "--test-s", "0.2", "--dt-ms", "0.5",
+                 "--out", str(out), "--no-progress"]) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["config"]["dt_ms"] == 0.5 and res["config"]["loop"]["network"]["dt_ms"] == 0.5
+    assert main(["test", "--from", str(out), "--test-s", "0.2", "--out", str(tmp_path / "t")]) == 0
+    again = json.loads((tmp_path / "t" / "results.json").read_text())
+    assert again["config"]["loop"]["network"]["dt_ms"] == 0.5
+    assert again["networks"][0]["min_distance_m"] == res["networks"][0]["min_distance_m"]   # same network, same test

@@ -134,3 +134,60 @@ def markdown(stats: list[dict]) -> str:
         cells.append(f"{ours:.2f} / " + (f"{p[0] / p[1]:.2f}" if p[1] else "–"))
     row("jerk ratio trained / naive", cells)
     return "\n".join(lines)
+
+
+#: The original NEURON model's 1 s test after that training (simple arm, left target, its seeds; spec §10): hand–target
+#: distance (cm) at test times (ms), as the spec reports them ("15.1 cm until t≈130 ms" gives the first two points).
+ORIGINAL_TEST_DISTANCE_CM = {0: 15.1, 130: 15.1, 200: 12.9, 400: 7.3, 600: 4.3, 700: 3.5, 800: 1.7, 900: 2.5,
+                             1000: 3.3}
+#: Its closest approach and final distance, cm; its joint angles at the test's end (shoulder, elbow), rad.
+ORIGINAL_TEST_CLOSEST_CM, ORIGINAL_TEST_FINAL_CM = 1.59, 3.31
+ORIGINAL_TEST_FINAL_Q_RAD = (1.007, 1.692)
+#: Its firing rates over the test (spkstats2), Hz.
+ORIGINAL_TEST_RATES_HZ = {"ES": 5.0, "IS": 5.6, "ISL": 3.4, "EM": 5.1, "IM": 9.9, "IML": 3.4}
+
+
+def _percentile_of(values: np.ndarray, x: float) -> float:
+    """Percent of ``values`` at or below ``x`` (ties count half): where the original's one value sits among ours."""
+    values = np.asarray(values, float)
+    return 100.0 * (np.sum(values < x) + 0.5 * np.sum(values == x)) / len(values)
+
+
+def original_test_comparison(folder: Path) -> dict:
+    """Our trained networks' 1 s test beside the original model's one test (:data:`ORIGINAL_TEST_DISTANCE_CM`).
+
+    ``folder`` is a ``jaxarm train`` output (simple arm, left target: the only target the original was run on).
+    For each reference time: our median, 10th and 90th percentile distance (cm) over networks, and the percentile at
+    which the original's value sits among ours (low = the original was closer than most of ours); the same for the
+    closest approach and the final distance; the median final joint angles (rad) and the test's firing rates (Hz,
+    mean over networks) beside the original's. Distances at a reference time are read at the nearest sample of the
+    10 ms trajectory. Ours are rounded to the reference's precision (0.1 cm; 0.01 cm for the closest approach and the
+    final distance) before the percentile, so that equal values tie (count half) rather than differ in the last digit."""
+    res = json.loads((folder / "results.json").read_text())
+    if res["config"]["arm"] != "simple" or res["target"] != "left":
+        raise ValueError(f"{folder}: arm={res['config']['arm']!r}, target={res['target']!r}; the original's reference "
+                         "test is the simple arm on the left target")
+    traj = np.load(folder / "trajectories.npz")
+    t_ms = 1000.0 * np.asarray(traj["t"], float)
+    dist_cm = 100.0 * np.asarray(traj["distance"], float)          # (networks, T)
+    rows = []
+    for t_ref, d_ref in ORIGINAL_TEST_DISTANCE_CM.items():
+        i = int(np.argmin(np.abs(t_ms - t_ref)))
+        d = np.round(dist_cm[:, i], 1)
+        rows.append({"t_ms": t_ref, "original_cm": d_ref, "median_cm": float(np.median(d)),
+                     "p10_cm": float(np.percentile(d, 10)), "p90_cm": float(np.percentile(d, 90)),
+                     "original_percentile": _percentile_of(d, d_ref)})
+    closest, final = dist_cm.min(axis=1), dist_cm[:, -1]
+    q_final = np.asarray(traj["q"], float)[:, -1]
+    return {
+        "folder": str(folder), "n": int(dist_cm.shape[0]), "success_count": int(res["success_count"]),
+        "distance": rows,
+        "closest": {"original_cm": ORIGINAL_TEST_CLOSEST_CM, "median_cm": float(np.median(closest)),
+                    "p10_cm": float(np.percentile(closest, 10)), "p90_cm": float(np.percentile(closest, 90)),
+                    "original_percentile": _percentile_of(np.round(closest, 2), ORIGINAL_TEST_CLOSEST_CM)},
+        "final": {"original_cm": ORIGINAL_TEST_FINAL_CM, "median_cm": float(np.median(final)),
+                  "p10_cm": float(np.percentile(final, 10)), "p90_cm": float(np.percentile(final, 90)),
+                  "original_percentile": _percentile_of(np.round(final, 2), ORIGINAL_TEST_FINAL_CM)},
+        "final_q_rad": {"original": list(ORIGINAL_TEST_FINAL_Q_RAD), "median": np.median(q_final, axis=0).tolist()},
+        "test_rates_hz": {"original": ORIGINAL_TEST_RATES_HZ, "ours": res.get("test_rates_hz")},
+    }
