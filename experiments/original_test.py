@@ -40,6 +40,9 @@ def markdown(c: dict) -> str:
         lines += ["| test rates, Hz | " + " | ".join(pops) + " |", "|---|" + "---|" * len(pops),
                   "| original | " + " | ".join(f"{rates['original'][p]:.1f}" for p in pops) + " |",
                   "| ours (mean over networks) | " + " | ".join(f"{rates['ours'][p]:.1f}" for p in pops) + " |"]
+        if rates["original_percentile"]:
+            lines.append("| original's percentile among ours | "
+                         + " | ".join(f"{rates['original_percentile'][p]:.0f}" for p in pops) + " |")
     return "\n".join(lines)
 
 

@@ -186,7 +186,8 @@ def write_outputs(run: Run, trained_res, naive_res, history, wall_s, epochs_run,
         "n_networks": run.n,
         "target": task.target,
         "target_xy_m": target.round(5).tolist(),
-        "networks": _network_rows(seeds, m_tr),
+        "networks": [row | {"test_rates_hz": {p: round(float(r), 3) for p, r in zip(POP_NAMES, rates)}}
+                     for row, rates in zip(_network_rows(seeds, m_tr), np.asarray(trained_res.rates_hz))],
         "naive": {"success_count": int(m_nv["success"].sum()), "networks": _network_rows(seeds, m_nv)},
         "history": {
             "rates_last10s_hz": {p: hist["rates_last10s_hz"][:, :, j].mean(axis=1).round(3).tolist()

@@ -240,7 +240,9 @@ def test_original_test_comparison_places_the_original_run_among_ours(tmp_path):
     dist = (15.1 + (ends[:, None] - 15.1) * t[None]) / 100.0
     folder = tmp_path / "run"
     folder.mkdir()
+    em = [3.0, 4.0, 6.0, 7.0]
     res = {"target": "left", "success_count": 3, "config": {"arm": "simple"},
+           "networks": [{"test_rates_hz": dict.fromkeys(mod.ORIGINAL_TEST_RATES_HZ, 1.0) | {"EM": r}} for r in em],
            "test_rates_hz": {"ES": 5.0, "IS": 5.0, "ISL": 3.0, "EM": 4.0, "IM": 9.0, "IML": 3.0}}
     (folder / "results.json").write_text(json.dumps(res))
     q = np.zeros((4, 101, 2)) + np.array([0.62, 1.53])
@@ -254,6 +256,8 @@ def test_original_test_comparison_places_the_original_run_among_ours(tmp_path):
     assert c["final"]["original_percentile"] == 50.0 and c["closest"]["original_percentile"] == 25.0   # 1.59 > 0
     assert c["final_q_rad"]["median"] == pytest.approx([0.95, 1.65])
     assert c["test_rates_hz"]["original"]["EM"] == 5.1 and c["test_rates_hz"]["ours"]["EM"] == 4.0
+    assert c["test_rates_hz"]["original_percentile"]["EM"] == 50.0     # 5.1 Hz: above 3 and 4, below 6 and 7
+    assert c["test_rates_hz"]["original_percentile"]["IM"] == 100.0    # 9.9 Hz: above all our 1.0 Hz
     res["target"] = "bottom"
     (folder / "results.json").write_text(json.dumps(res))
     with pytest.raises(ValueError, match="left target"):

@@ -189,5 +189,15 @@ def original_test_comparison(folder: Path) -> dict:
                   "p10_cm": float(np.percentile(final, 10)), "p90_cm": float(np.percentile(final, 90)),
                   "original_percentile": _percentile_of(np.round(final, 2), ORIGINAL_TEST_FINAL_CM)},
         "final_q_rad": {"original": list(ORIGINAL_TEST_FINAL_Q_RAD), "median": np.median(q_final, axis=0).tolist()},
-        "test_rates_hz": {"original": ORIGINAL_TEST_RATES_HZ, "ours": res.get("test_rates_hz")},
+        "test_rates_hz": {"original": ORIGINAL_TEST_RATES_HZ, "ours": res.get("test_rates_hz"),
+                          "original_percentile": _rate_percentiles(res["networks"])},
     }
+
+
+def _rate_percentiles(networks: list[dict]) -> dict | None:
+    """Per population, the percentile of the original's test rate among our networks' (None for folders written
+    before results.json had per-network test rates)."""
+    if not networks or "test_rates_hz" not in networks[0]:
+        return None
+    return {p: _percentile_of(np.round([n["test_rates_hz"][p] for n in networks], 1), r)
+            for p, r in ORIGINAL_TEST_RATES_HZ.items()}
