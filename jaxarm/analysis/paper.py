@@ -157,7 +157,7 @@ def original_test_comparison(folder: Path) -> dict:
     """Our trained networks' 1 s test beside the original model's one test (:data:`ORIGINAL_TEST_DISTANCE_CM`).
 
     ``folder`` is a ``jaxarm train`` output (simple arm, left target: the only target the original was run on).
-    For each reference time: our median, 10th and 90th percentile distance (cm) over networks, and the percentile at
+    For each reference time from 200 ms on (before it the original's hand had not moved): our median, 10th and 90th percentile distance (cm) over networks, and the percentile at
     which the original's value sits among ours (low = the original was closer than most of ours); the same for the
     closest approach and the final distance; the median final joint angles (rad) and the test's firing rates (Hz,
     mean over networks) beside the original's. Distances at a reference time are read at the nearest sample of the
@@ -172,6 +172,8 @@ def original_test_comparison(folder: Path) -> dict:
     dist_cm = 100.0 * np.asarray(traj["distance"], float)          # (networks, T)
     rows = []
     for t_ref, d_ref in ORIGINAL_TEST_DISTANCE_CM.items():
+        if t_ref < 200:   # the start distance, before the first readout window filled ("until t≈130 ms"): no test
+            continue
         i = int(np.argmin(np.abs(t_ms - t_ref)))
         d = np.round(dist_cm[:, i], 1)
         rows.append({"t_ms": t_ref, "original_cm": d_ref, "median_cm": float(np.median(d)),
