@@ -45,6 +45,17 @@ def _compiled(config: LoopConfig):
             jax.jit(jax.vmap(fns.test, in_axes=(0, 0, None))))
 
 
+#: NetworkConfig fields `jaxarm train` sets from its options (--dt-ms, --threshold-test); recorded in the run's meta.
+NETWORK_OPTIONS = ("dt_ms", "threshold_test")
+
+
+def network_config(source) -> NetworkConfig:
+    """The NetworkConfig of a run: ``source`` is the parsed `jaxarm train` options or a run's meta dict; an option
+    that is absent or None keeps NetworkConfig's default."""
+    get = source.get if isinstance(source, dict) else lambda k: getattr(source, k, None)
+    return NetworkConfig(**{k: get(k) for k in NETWORK_OPTIONS if get(k) is not None})
+
+
 def network_keys(seed: int, n: int):
     return jnp.stack([jax.random.PRNGKey(seed + i) for i in range(n)])
 
@@ -60,9 +71,10 @@ class Run:
         meta = {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
                 "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
                 "epoch_s": self.config.task.epoch_duration_s, "metaparams": self.mp.to_dict()}
-        # Only a non-default clock step is recorded, so folders written before --dt-ms existed still resume.
-        if self.config.network.dt_ms != NetworkConfig().dt_ms:
-            meta["dt_ms"] = self.config.network.dt_ms
+        # Only non-default network options are recorded, so folders written before the options existed still resume.
+        for name in NETWORK_OPTIONS:
+            if getattr(self.config.network, name) != getattr(NetworkConfig(), name):
+                meta[name] = getattr(self.config.network, name)
         return meta
 
     def empty_history(self, carry) -> EpochSummary:
@@ -272,8 +284,7 @@ def _configs(args) -> list[tuple[str, LoopConfig]]:
     for target in args.target:
         task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
                           test_duration_s=args.test_s)
-        network = NetworkConfig(dt_ms=getattr(args, "dt_ms", None) or NetworkConfig().dt_ms)
-        out.append((target, LoopConfig(arm=args.arm, backend=args.backend, network=network, task=task)))
+        out.append((target, LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task)))
     return out
 
 
@@ -295,6 +306,9 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dt-ms", type=float, default=None,
                     help=f"network clock step, ms (default {NetworkConfig().dt_ms}; must divide 1 ms, e.g. 0.1 to "
                          "check that a result does not depend on the step)")
+    ap.add_argument("--threshold-test", choices=("every_step", "on_event"), default=None,
+                    help="when a cell's threshold is tested: every_step (default) or on_event (only in steps with "
+                         "input, as the event-driven original; NetworkConfig.threshold_test)")
     args = ap.parse_args(argv)
     _check(ap, args)
     try:
@@ -365,8 +379,7 @@ def test_main(argv: list[str] | None = None) -> int:
                          "with the same options to finish it first")
     task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
                       test_duration_s=args.test_s or 1.0)
-    network = NetworkConfig(dt_ms=meta.get("dt_ms", NetworkConfig().dt_ms))
-    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
+    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network_config(meta), task=task)
     out = args.out or args.src / "test"
     if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
         from jaxarm.learning.metaparams import stack

@@ -241,15 +241,17 @@ def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
         mod.curve_for_target("simple", "left", mp, 2, 2, 6, tmp_path / "a", epoch_s=0.3, log=quiet)
 
 
-def test_train_cli_clock_step_is_recorded_and_kept_by_test(tmp_path):
+def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
     from jaxarm.cli import main
 
     out = tmp_path / "dt"
     assert main(["train", "--networks", "1", "--epochs", "1", "--epoch-s", "0.2", "--test-s", "0.2", "--dt-ms", "0.5",
-                 "--out", str(out), "--no-progress"]) == 0
+                 "--threshold-test", "on_event", "--out", str(out), "--no-progress"]) == 0
     res = json.loads((out / "results.json").read_text())
     assert res["config"]["dt_ms"] == 0.5 and res["config"]["loop"]["network"]["dt_ms"] == 0.5
+    assert res["config"]["threshold_test"] == "on_event"
     assert main(["test", "--from", str(out), "--test-s", "0.2", "--out", str(tmp_path / "t")]) == 0
     again = json.loads((tmp_path / "t" / "results.json").read_text())
     assert again["config"]["loop"]["network"]["dt_ms"] == 0.5
+    assert again["config"]["loop"]["network"]["threshold_test"] == "on_event"
     assert again["networks"][0]["min_distance_m"] == res["networks"][0]["min_distance_m"]   # same network, same test

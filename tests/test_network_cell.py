@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxarm.config import ConfigError
 from jaxarm.network import NetworkConfig, Populations
 from jaxarm.network import cell as C
 
@@ -102,6 +103,31 @@ def test_depolarisation_block_prevents_spikes():
         if bool(spiked[0]):
             fired.append(float(C.membrane_potential(s, const)[0]) + 1.0)  # + ahpwt: Vm at the crossing
     assert fired and all(-40.0 < v <= -25.0 + 1e-4 for v in fired[:1])
+
+
+def test_on_event_threshold_test_waits_for_the_next_input():
+    """The original tests the threshold only when an event arrives: a cell depolarised into block that then decays
+    through (VTH, Vblock] fires at once with every-step tests, and only at its next input with on-event tests."""
+    config = NetworkConfig(dt_ms=0.5)
+    const = _one_cell_constants(config, 0)  # an E cell
+    zero, big, tiny = jnp.zeros(1), jnp.array([60.0]), jnp.array([1e-3])
+
+    def first_spike(on_event, input_at):
+        s, _ = C.cell_step(C.init_cells(1), big, zero, zero, zero, const, on_event=on_event)   # into block
+        for k in range(200):
+            gaba = tiny if k == input_at else zero      # a negligible inhibitory event: it only triggers the test
+            s, spiked = C.cell_step(s, zero, zero, gaba, zero, const, on_event=on_event)
+            if bool(spiked[0]):
+                return k
+        return None
+
+    # Vm decays from -5 mV through Vblock = -25 (t = 8 ms) to VTH = -40 (t = 17.5 ms); step 25 is t = 13 ms
+    every = first_spike(False, input_at=25)
+    assert every is not None and every < 25
+    assert first_spike(True, input_at=25) == 25        # silent until the event, then fires at it
+    assert first_spike(True, input_at=10_000) is None  # no event, no test, no spike
+    with pytest.raises(ConfigError, match="threshold_test"):
+        NetworkConfig(threshold_test="sometimes")
 
 
 def test_refractory_periods_in_steps():

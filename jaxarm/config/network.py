@@ -67,6 +67,11 @@ class NetworkConfig:
             ``jaxarm.network.cell.event_load``); "linear": summed weights times one driving force (the first-order
             form, which overshoots for volleys, e.g. the 22 simultaneous P inputs of every ES cell at t = 2 ms:
             88 mV vs the original's 49 mV). One event per step gives the same jump either way.
+        threshold_test: when a cell's threshold is tested. "every_step" (default): at the end of every step, so a
+            cell above threshold fires as soon as its refractory period ends; "on_event": only in steps in which at
+            least one event (synaptic or noise, excitatory or inhibitory) arrives at the cell, as the event-driven
+            original tests it (intf6.mod: on every arriving event; the end of the refractory period does not test),
+            so a cell held above threshold waits for its next input.
         plasticity_bookkeeping: keep each cell's last spike time and tag plastic synapses on postsynaptic spikes
             (``pdope``), for reward-modulated STDP.
         kernel: what runs a chunk of steps. "native": one compiled C++ call per chunk for the whole batch
@@ -95,6 +100,7 @@ class NetworkConfig:
     out_capacity: int = 0
     noise_max_rate_hz: float = 250.0
     event_summation: str = "sequential"
+    threshold_test: str = "every_step"
     plasticity_bookkeeping: bool = True
     kernel: str = "auto"
     native_threads: int = field(default_factory=lambda: int(os.environ.get("JAXARM_NATIVE_THREADS", "1")))
@@ -141,6 +147,7 @@ class NetworkConfig:
         check_range(self, "out_capacity", 0, 1_000_000, integer=True)
         check_range(self, "noise_max_rate_hz", 0.0, 5000.0, lo_open=True)
         check_choice(self, "event_summation", ("sequential", "linear"))
+        check_choice(self, "threshold_test", ("every_step", "on_event"))
         if not isinstance(self.plasticity_bookkeeping, bool):
             raise ConfigError(f"NetworkConfig.plasticity_bookkeeping = {self.plasticity_bookkeeping!r}: "
                               "must be True or False")

@@ -20,9 +20,10 @@ One step of dt, in the original's per-event order:
 
 Differences from the event-driven original (the "LIF approximation" of the design):
 
-* the threshold is tested at every step rather than only when an event arrives (the original misses crossings
-  caused by decaying inhibition until the next event; with ~400 background events per second per cell it tests
-  every ~2.5 ms on average);
+* by default the threshold is tested at every step rather than only when an event arrives (the original misses
+  crossings caused by decaying inhibition or a decaying dynamic threshold until the next event; with ~400
+  background events per second per cell it tests every ~2.5 ms on average); ``NetworkConfig.threshold_test =
+  "on_event"`` tests only in steps with input, as the original;
 * events arriving in the same step share one V (the original recomputes V between events); for k equal AMPA events
   the original gives (65 - V)(1 - (1 - w/65)^k) instead of k w (1 - V/65) — the difference is second order in w/65
   and matters only for volleys of many simultaneous inputs;
@@ -139,12 +140,13 @@ def mg_block(v_abs):
 
 
 def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants,
-              sequential: bool = False):
+              sequential: bool = False, on_event: bool = False):
     """Advance every cell by one step and apply this step's input (summed weights, mV, each (n_cells,)).
 
     ``sequential``: the AMPA and GABA inputs are summed loads (:func:`event_load`) rather than summed weights, and
     several events of one channel in a step saturate toward the reversal as the original's one-by-one jumps do.
-    With one event per step both forms are the same. Returns (new state, spiked (n_cells,) bool).
+    With one event per step both forms are the same. ``on_event``: test the threshold only in cells that received
+    input in this step (``NetworkConfig.threshold_test = "on_event"``). Returns (new state, spiked (n_cells,) bool).
     """
     ampa = s.ampa * c.decay_ampa
     nmda = s.nmda * c.decay_nmda
@@ -173,6 +175,8 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
 
     vm = jnp.clip(c.rmp + ampa + nmda + gaba_prox + gaba_dist + ahp, VM_MIN, VM_MAX)
     crossed = (since >= c.n_refractory) & (vm > c.vth + excess)
+    if on_event:
+        crossed = crossed & ((ampa_in != 0.0) | (nmda_in != 0.0) | (gaba_prox_in != 0.0) | (gaba_dist_in != 0.0))
     spiked = crossed & (vm <= c.vblock)
     ahp = jnp.where(spiked, ahp - c.ahpwt, ahp)
     excess = jnp.where(spiked, c.post_spike_excess, excess)

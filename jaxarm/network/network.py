@@ -230,7 +230,8 @@ class Network:
         drive = counts * self.noise_weights  # (3, n): AMPA, GABA-prox, GABA-dist
         cells, net_spiked = cell_mod.cell_step(
             state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
-            self.cell_constants, sequential=c.event_summation == "sequential")
+            self.cell_constants, sequential=c.event_summation == "sequential",
+            on_event=c.threshold_test == "on_event")
         p, p_spiked = proprio_mod.p_step(state.p, m)
         spiked = jnp.concatenate([net_spiked, p_spiked])
         state = state._replace(

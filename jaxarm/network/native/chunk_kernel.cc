@@ -74,7 +74,7 @@ struct View {  // one input or output: base pointer, per-network element count, 
 };
 
 struct Attrs {
-  int64_t n_steps, n_slots, p_syn_offset, n_groups, sequential, exc[8];
+  int64_t n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, exc[8];
   float dt_ms;
 };
 
@@ -320,6 +320,8 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     }
     // 2e. threshold test (vectorised), then the spikes' own updates (rare)
     threshold(n, ampa, nmda, gprox, gdist, ahp, rmp, since, n_ref, vth, excess, vblock, sb);
+    if (a.on_event)   // the original tests only on an arriving event
+      for (int64_t i = 0; i < n; ++i) sb[i] &= hb[i];
     fired.clear();
     for (int64_t i0 = 0; i0 < n; i0 += 8) {
       uint64_t word;
@@ -396,7 +398,8 @@ View view_of(const ffi::AnyBuffer& b, int base_rank, int batch_rank) {
 }
 
 ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n_steps, int64_t n_slots,
-                     int64_t p_syn_offset, int64_t sequential, float dt_ms, ffi::Span<const int64_t> excitatory,
+                     int64_t p_syn_offset, int64_t sequential, int64_t on_event, float dt_ms,
+                     ffi::Span<const int64_t> excitatory,
                      int64_t n_threads) {
   const int64_t n_groups = int64_t(excitatory.size());
   const int64_t n_in = kGroupTables + kTablesPerGroup * n_groups;
@@ -424,7 +427,7 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
     if (r.has_error()) return r.error();
     out[k] = view_of(**r, kBaseRankOut[k], batch_rank);
   }
-  Attrs a{n_steps, n_slots, p_syn_offset, n_groups, sequential, {0}, dt_ms};
+  Attrs a{n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, {0}, dt_ms};
   for (int64_t g = 0; g < n_groups; ++g) a.exc[g] = excitatory[g];
   int64_t total = 1;
   for (int64_t b : batch) total *= b;
@@ -462,6 +465,7 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
                                   .Attr<int64_t>("n_slots")
                                   .Attr<int64_t>("p_syn_offset")
                                   .Attr<int64_t>("sequential")
+                                  .Attr<int64_t>("on_event")
                                   .Attr<float>("dt_ms")
                                   .Attr<ffi::Span<const int64_t>>("excitatory")
                                   .Attr<int64_t>("n_threads"));
