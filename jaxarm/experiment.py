@@ -365,6 +365,8 @@ def test_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
                     help="test with this metaparameter changed (repeatable; e.g. v_em_max=60 or "
                          "em_noise_rate_test_hz=150); the trained weights are kept")
+    ap.add_argument("--threshold-test", choices=("every_step", "on_event"), default=None,
+                    help="test with this threshold test (default: as trained); the trained weights are kept")
     args = ap.parse_args(argv)
     try:
         overrides = _parse_overrides(args.overrides)
@@ -379,7 +381,9 @@ def test_main(argv: list[str] | None = None) -> int:
                          "with the same options to finish it first")
     task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
                       test_duration_s=args.test_s or 1.0)
-    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network_config(meta), task=task)
+    # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
+    network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {}))
+    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
     out = args.out or args.src / "test"
     if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
         from jaxarm.learning.metaparams import stack

@@ -255,3 +255,7 @@ def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
     assert again["config"]["loop"]["network"]["dt_ms"] == 0.5
     assert again["config"]["loop"]["network"]["threshold_test"] == "on_event"
     assert again["networks"][0]["min_distance_m"] == res["networks"][0]["min_distance_m"]   # same network, same test
+    assert main(["test", "--from", str(out), "--test-s", "0.2", "--threshold-test", "every_step",
+                 "--out", str(tmp_path / "t2")]) == 0
+    other = json.loads((tmp_path / "t2" / "results.json").read_text())
+    assert other["config"]["loop"]["network"]["threshold_test"] == "every_step"
