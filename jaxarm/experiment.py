@@ -71,11 +71,13 @@ class Run:
         meta = {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
                 "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
                 "epoch_s": self.config.task.epoch_duration_s, "metaparams": self.mp.to_dict()}
-        # Only non-default network options are recorded, so folders written before the options existed still resume.
-        for name in NETWORK_OPTIONS:
-            if getattr(self.config.network, name) != getattr(NetworkConfig(), name):
-                meta[name] = getattr(self.config.network, name)
-        return meta
+        return meta | self.network_meta()
+
+    def network_meta(self) -> dict:
+        """The run's :data:`NETWORK_OPTIONS` that differ from NetworkConfig's defaults. Only those are recorded, so
+        folders written before the options existed still resume."""
+        net, default = self.config.network, NetworkConfig()
+        return {k: getattr(net, k) for k in NETWORK_OPTIONS if getattr(net, k) != getattr(default, k)}
 
     def empty_history(self, carry) -> EpochSummary:
         one = jax.eval_shape(lambda c: self.epoch_fn(c, self.mp)[1], carry)
@@ -159,7 +161,7 @@ class SetsRun(Run):
     def meta(self) -> dict:
         return {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
                 "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
-                "epoch_s": self.config.task.epoch_duration_s, "metaparams": [m.to_dict() for m in unstack(self.mp)]}
+                "epoch_s": self.config.task.epoch_duration_s, "metaparams": [m.to_dict() for m in unstack(self.mp)]} | self.network_meta()
 
 
 def _progress(total, initial, enabled, desc):

@@ -247,3 +247,16 @@ def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
                  "--set", "explore_tot=99", *TINY]) == 2
     err = capsys.readouterr().err
     assert "explore_tot" in err and "outside its range" in err
+
+
+def test_dt_ms_sets_the_clock_step_of_every_run(tmp_path, preset_dir, capsys):
+    out = tmp_path / "dt"
+    assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--top", "2", "--out", str(out),
+                 "--dt-ms", "0.5", *TINY]) == 0
+    for mode in ("seeds", "top30"):
+        cfg = json.loads((out / "left" / mode / "results.json").read_text())["config"]
+        assert cfg["dt_ms"] == 0.5 and cfg["loop"]["network"]["dt_ms"] == 0.5
+    capsys.readouterr()
+    assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--out", str(tmp_path / "bad"),
+                 "--dt-ms", "0.3", *TINY]) == 2
+    assert "dt_ms = 0.3" in capsys.readouterr().err

@@ -116,13 +116,14 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
               epochs: int | None = None, epoch_s: float = 30.0, test_s: float = 1.0, top: int = preset_lib.MAX_TOP,
               backend: str = "fast", progress: bool = True, command: str | None = None,
               overrides: dict[str, float] | None = None, stop_after: int | None = None,
-              log=print) -> dict | None:
+              dt_ms: float | None = None, log=print) -> dict | None:
     """Run (or resume) modes (a) and (b) for every target (``targets`` None: the preset's own targets if it names
     any, else :data:`DEFAULT_TARGETS`); write and return the success table. ``overrides`` ({name: value}, each
     within its bound; ``--set``) replaces those metaparameters in the best set and in every top set alike (an
     ``epochs`` override sets the training length, as ``--epochs`` does). ``stop_after``:
     stop the first unfinished folder after that many epochs of this call and return None (tests use it to
-    interrupt a run)."""
+    interrupt a run). ``dt_ms``: the network clock step (None: NetworkConfig's default), recorded in the runs'
+    meta when not the default."""
     from jaxarm.experiment import Run, SetsRun
     from jaxarm.learning.metaparams import MetaParams, stack
     from jaxarm.loop import LoopConfig
@@ -158,8 +159,12 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
             f"{','.join(other)} too")
     no_top = None if top_sets else (f"preset {preset.name!r} has no top list (only its best set is known)")
 
+    from jaxarm.experiment import network_config
+
+    network = network_config({"dt_ms": dt_ms})
+
     def config(target, n_epochs):
-        return LoopConfig(arm=arm, backend=backend, task=TaskConfig(
+        return LoopConfig(arm=arm, backend=backend, network=network, task=TaskConfig(
             target=target, epochs=n_epochs, epoch_duration_s=epoch_s, test_duration_s=test_s))
 
     configs = {t: (config(t, epochs_a), config(t, epochs_b) if top_sets else None) for t in targets}  # validate all
@@ -277,6 +282,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "explore_tot=8); recorded in success_table.json")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
     ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
+    ap.add_argument("--dt-ms", type=float, default=None,
+                    help="network clock step, ms (default 0.25, what every preset was searched with; e.g. 0.1 to "
+                         "check that a count does not depend on the step)")
     ap.add_argument("--no-progress", action="store_true")
     ap.add_argument("--list-presets", action="store_true", help="list the presets, one per line, name first; exit")
     g = ap.add_argument_group("making a preset from a finished `jaxarm evolve` folder")
@@ -320,7 +328,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
                           overrides=overrides,
                           epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
-                          backend=args.backend, progress=not args.no_progress,
+                          backend=args.backend, progress=not args.no_progress, dt_ms=args.dt_ms,
                           command=shlex.join(["jaxarm", "reproduce", *argv]))
     except ConfigError as e:
         print(f"jaxarm reproduce: {e}", file=sys.stderr)
