@@ -230,12 +230,16 @@ def test_a_one_target_preset_reproduces_its_target_by_default(tmp_path, preset_d
 
 def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
     """`--set NAME=VALUE` replaces that metaparameter in the best set (a) and in each top set (b), is recorded in
-    success_table.json, and a value outside its bound is refused naming the field and its range."""
+    success_table.json, and a value outside its bound is refused naming the field and its range; `--dt-ms` sets
+    every run's clock step."""
     out = tmp_path / "set"
     assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--top", "2", "--out", str(out),
-                 "--set", "explore_tot=8", *TINY]) == 0
+                 "--set", "explore_tot=8", "--dt-ms", "0.5", *TINY]) == 0
     table = json.loads((out / "success_table.json").read_text())
     assert table["set"] == {"explore_tot": 8.0}
+    for mode in ("seeds", "top30"):   # --dt-ms: the clock step of every run, recorded in its meta
+        cfg = json.loads((out / "left" / mode / "results.json").read_text())["config"]
+        assert cfg["dt_ms"] == 0.5 and cfg["loop"]["network"]["dt_ms"] == 0.5
     p = presets.load("quad", preset_dir)
     a = json.loads((out / "left" / "seeds" / "results.json").read_text())["config"]["metaparams"]
     b = json.loads((out / "left" / "top30" / "results.json").read_text())["config"]["metaparams"]
@@ -247,16 +251,7 @@ def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
                  "--set", "explore_tot=99", *TINY]) == 2
     err = capsys.readouterr().err
     assert "explore_tot" in err and "outside its range" in err
-
-
-def test_dt_ms_sets_the_clock_step_of_every_run(tmp_path, preset_dir, capsys):
-    out = tmp_path / "dt"
-    assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--top", "2", "--out", str(out),
-                 "--dt-ms", "0.5", *TINY]) == 0
-    for mode in ("seeds", "top30"):
-        cfg = json.loads((out / "left" / mode / "results.json").read_text())["config"]
-        assert cfg["dt_ms"] == 0.5 and cfg["loop"]["network"]["dt_ms"] == 0.5
-    capsys.readouterr()
     assert main(["reproduce", "--preset", "quad", "--preset-dir", str(preset_dir), "--out", str(tmp_path / "bad"),
                  "--dt-ms", "0.3", *TINY]) == 2
     assert "dt_ms = 0.3" in capsys.readouterr().err
+
