@@ -141,6 +141,9 @@ def test_reaching_fitness_is_registered_and_finite():
     assert "epochs" in fit.ignores and dict(fit.implied)["epochs"] == 1.0   # 0.3 s = one short epoch
     assert dict(fitness.build("reaching", fitness.FitnessOptions(arm="simple", targets=("left",), train_s=60.0))
                 .implied)["epochs"] == 2.0
+    # the clock step reaches the network: another step, other spike trains, another score
+    coarse = fitness.build("reaching", fitness.FitnessOptions(arm="simple", targets=("left",), train_s=0.3, dt_ms=0.5))
+    assert float(jax.jit(coarse.fn)(jax.random.PRNGKey(0), MetaParams.original())[0]) != float(value)
     # the success-aligned variant scores the closest approach: never more than the authors' (which includes the
     # distance at 20 ms, before the arm can move, i.e. the full 15.1 cm)
     closest = fitness.build("reaching-closest", fitness.FitnessOptions(arm="simple", targets=("left",), train_s=0.3))

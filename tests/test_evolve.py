@@ -409,6 +409,8 @@ def test_registry_builds_and_lists():
         fit.FitnessOptions(targets=("middle",))
     with pytest.raises(ConfigError, match="FitnessOptions.train_s"):
         fit.FitnessOptions(train_s=0.0)
+    with pytest.raises(ConfigError, match="dt_ms = 0.3: must divide 1 ms"):
+        fit.FitnessOptions(dt_ms=0.3)
     opt = fit.quadratic_optimum()
     assert float(fit.make_quadratic(0.0)(KEY, opt)[0]) == pytest.approx(0.0, abs=1e-10)
 

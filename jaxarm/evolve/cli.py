@@ -45,6 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--targets", default="left,bottom", help="comma-separated targets (default left,bottom)")
     ap.add_argument("--train-s", type=float, default=None,
                     help="simulated training length per evaluation, s (default: the candidate's epochs x 30 s)")
+    ap.add_argument("--dt-ms", type=float, default=None,
+                    help="network clock step, ms (default 0.25); reproduce the found sets with the same "
+                         "`jaxarm reproduce --dt-ms`")
     ap.add_argument("--strategy", default="CMA_ES", help="evosax strategy (default CMA_ES; SimpleGA for a GA; "
                                                           "see --list-strategies)")
     ap.add_argument("--population", type=int, default=16, help="candidates per generation (default 16)")
@@ -110,7 +113,7 @@ def evolve_main(argv: list[str] | None = None) -> int:
                 raise ConfigError(f"--{what}: {missing[0]!r} needs a value (name=value)")
         options = fitness_registry.FitnessOptions(
             arm=args.arm, targets=tuple(t.strip() for t in args.targets.split(",") if t.strip()),
-            train_s=args.train_s)
+            train_s=args.train_s, dt_ms=args.dt_ms)
         fitness = fitness_registry.build(args.fitness, options)
         search = [s.strip() for s in args.search.split(",") if s.strip()] or None
         ignored = [n for n in fitness.ignores if n not in freeze]   # searched or frozen by default alike
@@ -130,6 +133,8 @@ def evolve_main(argv: list[str] | None = None) -> int:
                               eval_batch_size=args.eval_batch)
         meta = {"name": args.fitness, "arm": options.arm, "targets": list(options.targets), "train_s": options.train_s,
                 "network_seconds_per_eval": fitness.network_seconds_per_eval}
+        if options.dt_ms is not None:   # recorded only when given, so searches from before --dt-ms still resume
+            meta["dt_ms"] = options.dt_ms
         if args.max_chunks is not None and args.max_chunks < 1:
             raise ConfigError(f"--max-chunks = {args.max_chunks}: must be >= 1")
         if args.reevaluate_seeds < 0:
@@ -147,7 +152,7 @@ def evolve_main(argv: list[str] | None = None) -> int:
         if args.reevaluate_seeds and (args.reevaluate_train_s is not None or re_targets != options.targets):
             re_train_s = args.reevaluate_train_s if args.reevaluate_train_s is not None else options.train_s
             reevaluate_fitness = fitness_registry.build(args.fitness, fitness_registry.FitnessOptions(
-                arm=options.arm, targets=re_targets, train_s=re_train_s))
+                arm=options.arm, targets=re_targets, train_s=re_train_s, dt_ms=options.dt_ms))
             reevaluate_meta = {"train_s": re_train_s,
                                "network_seconds_per_eval": reevaluate_fitness.network_seconds_per_eval}
             if re_targets != options.targets:

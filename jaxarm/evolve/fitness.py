@@ -57,11 +57,13 @@ class FitnessOptions:
         targets: target names (see :data:`jaxarm.task.config.TARGET_ANGLES_RAD`); the paper's are left and bottom.
         train_s: simulated training length per evaluation, s (short for a fast proxy; the paper's protocol is
             12 epochs x 30 s = 360 s), or ``None`` to train for the candidate's own ``epochs`` x 30 s.
+        dt_ms: the network's clock step, ms, or ``None`` for NetworkConfig's default (0.25 ms).
     """
 
     arm: str = "musculoskeletal"
     targets: tuple[str, ...] = ("left", "bottom")
     train_s: float | None = None
+    dt_ms: float | None = None
 
     def __post_init__(self):
         from jaxarm.task.config import TARGET_ANGLES_RAD   # light (no JAX work)
@@ -76,6 +78,9 @@ class FitnessOptions:
         object.__setattr__(self, "targets", targets)
         if self.train_s is not None:
             check_range(self, "train_s", 0.0, None, lo_open=True)
+        if self.dt_ms is not None:
+            from jaxarm.config.network import NetworkConfig   # light: validates the step (divides 1 ms, in range)
+            NetworkConfig(dt_ms=self.dt_ms)
 
 
 class Fitness(NamedTuple):
