@@ -61,7 +61,7 @@ def test_unexcited_muscle_in_equilibrium_stays_there(params):
 
 @pytest.mark.parametrize("key, lo, hi", [("tendon_force_length", -0.01, 0.3), ("active_force_length", 0.3, 2.0),
                                          ("passive_force_length", 0.5, 2.0)])
-def test_tabulated_spline_matches_the_natural_spline(key, lo, hi):
+def test_piecewise_spline_matches_the_natural_spline(key, lo, hi):
     from scipy.interpolate import CubicSpline
 
     table = mus.load_muscle_table()
@@ -70,6 +70,22 @@ def test_tabulated_spline_matches_the_natural_spline(key, lo, hi):
     exact = CubicSpline(table[0][key]["x"], table[0][key]["y"], bc_type="natural")(x)
     got = np.asarray(mus.eval_spline(spline, jnp.asarray(x, jnp.float32)))
     assert np.abs(got - exact).max() < 2e-6 * np.abs(exact).max() + 1e-6
+
+
+def test_spline_cut_below_lower_is_exact_above_it_and_per_muscle_curves_pad():
+    from scipy.interpolate import CubicSpline
+
+    xs = [np.array([-1.0, 0.0, 0.5, 1.0, 2.0]), np.array([-2.0, -0.5, 0.25, 3.0])]
+    ys = [np.array([0.0, 0.1, 0.4, 0.2, 1.0]), np.array([1.0, 0.0, 2.0, 0.5])]
+    cut = mus.natural_cubic_spline(xs, ys, lower=0.1)
+    assert cut.knots.shape == (2, 3) and np.isinf(np.asarray(cut.knots)[1, 2])  # 4 pieces -> 3; 3 -> 2, padded
+    x = np.linspace(0.1, 2.5, 2001)
+    for m in range(2):
+        exact = CubicSpline(xs[m], ys[m], bc_type="natural")(x)
+        got = np.asarray(jax.vmap(lambda v: mus.eval_spline(cut, jnp.full(2, v))[m])(jnp.asarray(x, jnp.float32)))
+        np.testing.assert_allclose(got, exact, atol=2e-6)
+    below = CubicSpline(xs[0], ys[0], bc_type="natural")(-0.5)
+    assert abs(float(mus.eval_spline(cut, jnp.full(2, -0.5))[0]) - below) > 1e-3  # the dropped piece is gone
 
 
 def test_spline_reproduces_its_knots(params):

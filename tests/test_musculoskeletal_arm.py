@@ -116,3 +116,19 @@ def test_gradient_through_100_steps_is_finite(backend, fast, mjx_arm):
 
     g = jax.jit(jax.grad(loss))(jnp.array([0.2, 0.6, 0.3, 0.5]))
     assert bool(jnp.isfinite(g).all()) and float(jnp.abs(g).sum()) > 0
+
+
+def test_separable_fast_geometry_is_the_full_polynomial():
+    """The fast path drops the mixed monomials of the length fit (rounding-level for these paths): same lengths and
+    moment arms as the full 55-monomial polynomial to float32 rounding, over and beyond the joint ranges."""
+    from jaxarm.arm.geometry import FastGeometry
+
+    class FullPolynomial(FastGeometry):
+        SEPARABLE_TOL_M = -1.0
+
+    sep, full = FastGeometry(), FullPolynomial()
+    assert sep.separable and not full.separable and sep.all_coef.shape[0] < full.all_coef.shape[0]
+    q = jax.random.uniform(jax.random.PRNGKey(0), (2000, 2), minval=-0.35, maxval=2.6)
+    a, b = (jax.vmap(lambda x, g=g: g(x, x))(q) for g in (sep, full))
+    np.testing.assert_allclose(a.mtu_length_m, b.mtu_length_m, atol=1e-6)
+    np.testing.assert_allclose(a.moment_arm_m, b.moment_arm_m, atol=1e-6)

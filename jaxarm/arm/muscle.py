@@ -41,23 +41,16 @@ _MAX_SIN_PENNATION = 0.99
 
 
 class Spline(NamedTuple):
-    """Natural cubic splines tabulated for fast vectorised evaluation: one per muscle, or one shared by all.
+    """Natural cubic splines as their own pieces: one per muscle, or one shared by all.
 
-    Between its second and second-to-last knot each curve is cut into uniform cells (at least 16 per knot interval,
-    at most ``MAX_TABLE_CELLS``), and every cell
-    stores the spline's own cubic (the piece at the cell's centre, re-expanded about the cell's start), so evaluating
-    is an index computation and a 4-coefficient gather: far cheaper on a CPU than a search over knots. Outside that
-    span the first/last pieces are exact single cubics. Only cells that contain a knot approximate (the neighbouring
-    pieces agree to second order there); ``tests/test_muscle.py`` bounds the error against the spline itself.
+    Piece ``i`` is the cubic valid from ``knots[:, i]`` on (the first one also below it, the last one also beyond
+    the last knot, as OpenSim continues the end pieces), stored as 4 coefficients about its own knot. Evaluating
+    walks the knots with compare-and-select (no gather, no search), which XLA fuses into one vectorised loop;
+    per-muscle curves with fewer pieces are padded with knots at +inf that are never selected.
     """
 
-    start: jnp.ndarray   # (S,) where the table starts (second knot)
-    inv_dx: jnp.ndarray  # (S,) 1 / cell width
-    c: jnp.ndarray       # (S, cells + 2, 4): [first piece, cells..., last piece], about each one's start
-    origin: jnp.ndarray  # (S, cells + 2) expansion point of each row
-
-
-MAX_TABLE_CELLS = 1 << 16
+    knots: jnp.ndarray  # (S, P) start of each piece
+    c: jnp.ndarray      # (S, P, 4) coefficients (a, b, c, d) of a h^3 + b h^2 + c h + d, h = x - knots[:, i]
 
 
 class MuscleParams(NamedTuple):
@@ -94,56 +87,40 @@ class MuscleForces(NamedTuple):
 # Splines
 
 
-def natural_cubic_spline(xs: list[np.ndarray], ys: list[np.ndarray]) -> Spline:
-    """Tabulate natural cubic splines (one per muscle; identical curves are stored once) into a :class:`Spline`.
+def natural_cubic_spline(xs: list[np.ndarray], ys: list[np.ndarray], lower: float = -np.inf) -> Spline:
+    """Natural cubic splines (one per muscle; identical curves are stored once) as a :class:`Spline`.
 
     Natural end conditions (zero second derivative) as in OpenSim's ``NaturalCubicSpline``; outside the knots the
-    end cubic is continued, and every stored curve spans far beyond the physiological range.
+    end cubic is continued, and every stored curve spans far beyond the physiological range. Pieces that end at or
+    below ``lower`` are not stored (the first kept piece is continued below it): the spline is exact on
+    ``[lower, inf)``, which is all the muscle ever asks for (strain >= 0, fibre length >= 0), and each dropped
+    piece is one compare-and-select less per evaluation.
     """
     from scipy.interpolate import CubicSpline
 
     curves = [(np.asarray(x, float), np.asarray(y, float)) for x, y in zip(xs, ys)]
     if all(np.array_equal(cx, curves[0][0]) and np.array_equal(cy, curves[0][1]) for cx, cy in curves):
         curves = curves[:1]
-    inner_gaps = [np.diff(x[1:-1]) for x, _ in curves]
-    n = int(min(MAX_TABLE_CELLS, max(16 * (x[-2] - x[1]) / g[g > 0].min() for (x, _), g in zip(curves, inner_gaps))))
-    start, dx = np.zeros(len(curves)), np.zeros(len(curves))
-    coef, origin = np.zeros((len(curves), n + 2, 4)), np.zeros((len(curves), n + 2))
-    for i, (x, y) in enumerate(curves):
+    kept = [slice(max(int(np.searchsorted(x, lower, side="right")) - 1, 0), len(x) - 1) for x, _ in curves]
+    pieces = max(k.stop - k.start for k in kept)
+    knots = np.full((len(curves), pieces), np.inf)
+    coef = np.zeros((len(curves), pieces, 4))
+    for i, ((x, y), k) in enumerate(zip(curves, kept)):
         cs = CubicSpline(x, y, bc_type="natural")
-        a, b = x[1], x[-2]
-        start[i], dx[i] = a, (b - a) / n
-        cell_start = a + dx[i] * np.arange(n)
-        centre = cell_start + dx[i] / 2
-        origin[i] = np.concatenate([[x[0]], cell_start, [x[-2]]])
-        # Taylor coefficients of the piece valid at each cell's centre, about the cell's start (exact for a cubic).
-        piece = np.clip(np.searchsorted(x, centre, side="right") - 1, 0, len(x) - 2)
-        pc = cs.c[:, piece].T                            # (n, 4) about x[piece]
-        coef[i, 1:-1] = _reexpand(pc, cell_start - x[piece])
-        coef[i, 0] = cs.c[:, 0]                          # first piece about x[0]
-        coef[i, -1] = cs.c[:, -1]                        # last piece about x[-2]
-    f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
-    return Spline(f32(start), f32(1 / dx), f32(coef), f32(origin))
-
-
-def _reexpand(c, shift):
-    """Coefficients (a, b, c, d) of a (h)^3 + b h^2 + c h + d re-expanded about h = shift."""
-    a, b, cc, d = c.T
-    return np.stack([a, 3 * a * shift + b, 3 * a * shift**2 + 2 * b * shift + cc,
-                     a * shift**3 + b * shift**2 + cc * shift + d], axis=1)
+        knots[i, : k.stop - k.start] = x[k]
+        coef[i, : k.stop - k.start] = cs.c.T[k]  # (a, b, c, d) of piece j about x[j]
+    return Spline(jnp.asarray(knots, jnp.float32), jnp.asarray(coef, jnp.float32))
 
 
 def eval_spline(s: Spline, x):
-    """Evaluate each muscle's spline at its own x (M,)."""
-    n = s.c.shape[1] - 2
-    row = jnp.clip(jnp.floor((x - s.start) * s.inv_dx).astype(jnp.int32) + 1, 0, n + 1)
-    if s.c.shape[0] == 1:
-        coef, origin = s.c[0][row], s.origin[0][row]
-    else:
-        coef = jnp.take_along_axis(s.c, row[:, None, None], axis=1)[:, 0]
-        origin = jnp.take_along_axis(s.origin, row[:, None], axis=1)[:, 0]
+    """Evaluate each muscle's spline at its own x (M,) (or the shared spline at every x)."""
+    origin, coef = s.knots[:, 0], [s.c[:, 0, j] for j in range(4)]
+    for i in range(1, s.knots.shape[1]):
+        past = x >= s.knots[:, i]
+        origin = jnp.where(past, s.knots[:, i], origin)
+        coef = [jnp.where(past, s.c[:, i, j], cj) for j, cj in enumerate(coef)]
     h = x - origin
-    return ((coef[:, 0] * h + coef[:, 1]) * h + coef[:, 2]) * h + coef[:, 3]
+    return ((coef[0] * h + coef[1]) * h + coef[2]) * h + coef[3]
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -167,7 +144,8 @@ def make_muscle_params(table: list[dict], *, time_scale_s: float, activation1: f
         return np.where(values > 0, values, default)
 
     def spline(key):
-        return natural_cubic_spline([m[key]["x"] for m in table], [m[key]["y"] for m in table])
+        # Tendon strain is clamped at 0 before the curve is read, fibre lengths are positive.
+        return natural_cubic_spline([m[key]["x"] for m in table], [m[key]["y"] for m in table], lower=0.0)
 
     damping = col("damping") if damping_override is None else np.full(len(table), damping_override)
     f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
@@ -214,10 +192,12 @@ def max_fiber_length(p: MuscleParams, lmt):
 
 
 def _normalised_forces(p: MuscleParams, lm, lmt):
-    ln = lm / p.optimal_fiber_length_m
+    # Divisions by per-muscle constants are written as products with their reciprocals: one divide per muscle,
+    # not one per muscle and arm (XLA keeps a true division by a non-power-of-two constant).
+    ln = lm * (1.0 / p.optimal_fiber_length_m)
     ca = cos_pennation(p, lm)
     lt = lmt - lm * ca
-    strain = (lt - p.tendon_slack_length_m) / p.tendon_slack_length_m
+    strain = lt * (1.0 / p.tendon_slack_length_m) - 1.0
     ft = jnp.where(strain >= 0.0, jnp.maximum(eval_spline(p.tendon_fl, jnp.maximum(strain, 0.0)), 0.0), 0.0)
     # The natural spline through the stored knots dips ~1e-6 below zero where the curve is flat at zero; a negative
     # passive force would hold a slack fibre stretched, so it is clipped.
@@ -229,28 +209,29 @@ def _normalised_forces(p: MuscleParams, lm, lmt):
 def _inverse_force_velocity(a, fa, fv, d):
     """Normalised fibre velocity from Schutte's inverse force-velocity relation with damping ``d``."""
     afa = a * fa
+    inv_d = 1.0 / d
     # Shortening branch (f_v < a f_a).
-    c1 = _KV * (fv - afa) / d
-    b1 = -_KV * (fv / _KV + afa + d) / d
+    c1 = _KV * (fv - afa) * inv_d
+    b1 = -(fv + _KV * afa + _KV * d) * inv_d
     v_short = (-b1 - jnp.sqrt(jnp.maximum(b1 * b1 - 4.0 * c1, 0.0))) / 2.0
     # Lengthening branch.
-    c2 = -(_SLOPE_K * _KV / (d * (_KV + 1.0))) * (fv - afa)
-    b2 = -(fv / d - _FMAX * afa / d - _SLOPE_K * _KV / (_KV + 1.0))
+    c2 = -(_SLOPE_K * _KV / (_KV + 1.0)) * inv_d * (fv - afa)
+    b2 = -((fv - _FMAX * afa) * inv_d - _SLOPE_K * _KV / (_KV + 1.0))
     v_long = (-b2 + jnp.sqrt(jnp.maximum(b2 * b2 - 4.0 * c2, 0.0))) / 2.0
-    return jnp.where(fv < -d, fv / d, jnp.where(fv < afa, v_short, v_long))
+    return jnp.where(fv < -d, fv * inv_d, jnp.where(fv < afa, v_short, v_long))
 
 
 def fiber_velocity(p: MuscleParams, a, lm, lmt):
     """dlm/dt (m/s) from the force balance between fibre and tendon."""
     ca, ft, fp, fa = _normalised_forces(p, lm, lmt)
     fv = jnp.maximum(ft / ca - fp, 0.0)
-    return _inverse_force_velocity(a, fa, fv, p.damping) * p.optimal_fiber_length_m / p.time_scale_s
+    return _inverse_force_velocity(a, fa, fv, p.damping) * (p.optimal_fiber_length_m / p.time_scale_s)
 
 
 def tendon_force(p: MuscleParams, lm, lmt):
     """Force along each muscle-tendon path (N): the tendon's force at fibre length lm (m) and path length lmt (m)."""
     lt = lmt - lm * cos_pennation(p, lm)
-    strain = (lt - p.tendon_slack_length_m) / p.tendon_slack_length_m
+    strain = lt * (1.0 / p.tendon_slack_length_m) - 1.0
     ft = jnp.where(strain >= 0.0, jnp.maximum(eval_spline(p.tendon_fl, jnp.maximum(strain, 0.0)), 0.0), 0.0)
     return ft * p.max_force_n
 
@@ -271,7 +252,7 @@ def step(p: MuscleParams, state: MuscleState, u, lmt, dt_s: float) -> MuscleStat
     Fibre length: diagonal linearly-implicit Euler (see module docstring).
     """
     a = state.activation
-    rate = jnp.where(u >= a, p.activation1 * u + p.activation2, p.activation2) / p.time_scale_s
+    rate = jnp.where(u >= a, p.activation1 * u + p.activation2, p.activation2) * (1.0 / p.time_scale_s)
     a_new = u + (a - u) * jnp.exp(-rate * dt_s)
 
     lm = state.fiber_length_m
