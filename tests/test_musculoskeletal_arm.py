@@ -132,3 +132,21 @@ def test_separable_fast_geometry_is_the_full_polynomial():
     a, b = (jax.vmap(lambda x, g=g: g(x, x))(q) for g in (sep, full))
     np.testing.assert_allclose(a.mtu_length_m, b.mtu_length_m, atol=1e-6)
     np.testing.assert_allclose(a.moment_arm_m, b.moment_arm_m, atol=1e-6)
+
+
+def test_padding_lanes_are_inert(fast):
+    """The muscle state is padded to whole SIMD registers; the padding lanes get no drive and pull on nothing, so the
+    arm is the 22-muscle arm: torques and observations come from the real muscles only."""
+    assert fast.n_muscles == 22 and fast.n_lanes % 8 == 0 and fast.n_lanes >= 22
+    assert not np.asarray(fast.group_drive[fast.n_muscles:]).any()
+    s = fast.init()
+    assert s.muscle.activation.shape == (fast.n_lanes,)
+    # Stretch only the padding lanes' fibres: the joint trajectory must not change at all.
+    pad = jnp.arange(fast.n_lanes) >= fast.n_muscles
+    poked = s._replace(muscle=s.muscle._replace(fiber_length_m=jnp.where(pad, s.muscle.fiber_length_m * 0.7,
+                                                                         s.muscle.fiber_length_m)))
+    us = random_excitations(jax.random.PRNGKey(5), 0.2)
+    run = jax.jit(lambda s0: jax.lax.scan(lambda st, u: (fast.step(st, u), st.q), s0, us)[1])
+    np.testing.assert_array_equal(run(s), run(poked))
+    obs = fast.observe(s)
+    assert obs.muscles.activation.shape == (22,) and obs.muscles.fiber_length_m.shape == (22,)

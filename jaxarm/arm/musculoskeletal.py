@@ -36,14 +36,24 @@ GROUP_MUSCLES = (
 PROPRIO_MUSCLES = ("DELT3", "PECM1", "TRIlong", "BIClong")
 
 
+#: The muscle state is held in a multiple of this many lanes (8 float32 lanes = one AVX register): XLA:CPU
+#: vectorises the muscle's element-wise loops only when the muscle axis fills whole registers, and the 22
+#: muscles padded to 24 ran the muscle step 2.5x faster per muscle (``benchmarks/arm.py``, docs in README).
+MUSCLE_LANES = 8
+
+
 class MusculoskeletalArmState(NamedTuple):
     q: jnp.ndarray      # (2,) rad
     qd: jnp.ndarray     # (2,) rad/s
-    muscle: mus.MuscleState
+    muscle: mus.MuscleState  # (n_lanes,) each: the 22 muscles in osim order, then inert padding lanes
 
 
 class MusculoskeletalArm:
-    """``init / step / observe`` plus the muscle geometry queries ``mtu_lengths`` and ``moment_arms``."""
+    """``init / step / observe`` plus the muscle geometry queries ``mtu_lengths`` and ``moment_arms``.
+
+    The state's muscle arrays have ``n_lanes`` entries (24 for the 22 muscles, see ``MUSCLE_LANES``); the padding
+    lanes are inert. :meth:`observe` returns the 22 muscles only.
+    """
 
     kind = "musculoskeletal"
 
@@ -66,12 +76,23 @@ class MusculoskeletalArm:
             params = params._replace(tendon_slack_length_m=jnp.asarray(
                 relaxed_tendon_slack(params, lmt0), jnp.float32))
         self.params = params
+        # Padding lanes are copies of muscle 0 that get no excitation and pull on nothing (zero moment arms):
+        # they only keep the muscle arrays a whole number of SIMD registers wide.
+        self.n_muscles = n = len(table)
+        self.n_lanes = -(-n // MUSCLE_LANES) * MUSCLE_LANES
+        self._pad = np.concatenate([np.arange(n), np.zeros(self.n_lanes - n, int)])
+        def lanes(v):
+            if isinstance(v, mus.Spline):  # a curve shared by all muscles is stored once
+                return v if v.knots.shape[0] == 1 else mus.Spline(*(jnp.asarray(np.asarray(a)[self._pad]) for a in v))
+            return jnp.asarray(np.asarray(v)[self._pad])
+
+        self.lane_params = mus.MuscleParams(*(lanes(v) for v in params))
 
         index = {n: i for i, n in enumerate(self.muscle_names)}
-        drive = np.zeros((len(table), 4), np.float32)
+        drive = np.zeros((self.n_lanes, 4), np.float32)
         for g, names in enumerate(GROUP_MUSCLES):
             drive[[index[n] for n in names], g] = 1.0
-        self.group_drive = jnp.asarray(drive)   # (M, 4) excitation of each muscle from the 4 groups
+        self.group_drive = jnp.asarray(drive)   # (lanes, 4) excitation of each muscle lane from the 4 groups
         self.proprio_index = jnp.asarray([index[n] for n in PROPRIO_MUSCLES])
         self._q_min = jnp.asarray(config.q_min_rad, jnp.float32)
         self._q_max = jnp.asarray(config.q_max_rad, jnp.float32)
@@ -91,13 +112,21 @@ class MusculoskeletalArm:
     def init(self, q0=None) -> MusculoskeletalArmState:
         """At rest at q0 (rad; default the start posture), unexcited muscles in force equilibrium."""
         q0 = jnp.asarray(self.config.start_posture_rad if q0 is None else q0, jnp.float32)
-        lmt = self.mtu_lengths(q0)
+        lmt = self._lanes(self.mtu_lengths(q0))
         activation = jnp.zeros_like(lmt)
-        lm = mus.equilibrium_fiber_length(self.params, activation, lmt)
+        lm = mus.equilibrium_fiber_length(self.lane_params, activation, lmt)
         return MusculoskeletalArmState(q0, jnp.zeros(2, jnp.float32), mus.MuscleState(activation, lm))
 
+    def _lanes(self, per_muscle):
+        """(22, ...) -> (n_lanes, ...): padding lanes repeat muscle 0."""
+        if self.n_lanes == self.n_muscles:
+            return per_muscle
+        return jnp.concatenate([per_muscle, jnp.broadcast_to(per_muscle[:1], (self.n_lanes - self.n_muscles,)
+                                                             + per_muscle.shape[1:])])
+
     def excitations(self, u):
-        """(22,) muscle excitations from the 4 group excitations u in [0, 1] (values outside are clipped)."""
+        """(n_lanes,) muscle excitations (the 22 muscles, then zeros for the padding lanes) from the 4 group
+        excitations u in [0, 1] (values outside are clipped)."""
         return self.group_drive @ jnp.clip(jnp.asarray(u, jnp.float32), 0.0, 1.0)
 
     def step(self, state: MusculoskeletalArmState, u) -> MusculoskeletalArmState:
@@ -120,8 +149,9 @@ class MusculoskeletalArm:
 
     def _substep(self, s: MusculoskeletalArmState, e, h) -> MusculoskeletalArmState:
         geo = self.geometry(s.q, s.qd)
-        ms = mus.step(self.params, s.muscle, e, geo.mtu_length_m, h)
-        tendon = mus.tendon_force(self.params, ms.fiber_length_m, geo.mtu_length_m)
+        lmt = self._lanes(geo.mtu_length_m)
+        ms = mus.step(self.lane_params, s.muscle, e, lmt, h)
+        tendon = mus.tendon_force(self.lane_params, ms.fiber_length_m, lmt)[: self.n_muscles]
         spring, damping = self.joint_limit_torque(s.q, s.qd)
         tau = geo.moment_arm_m.T @ tendon + spring - geo.bias_nm
         # (M + h B) qd' = M qd + h tau: implicit limit damping B = diag(damping).
@@ -130,9 +160,11 @@ class MusculoskeletalArm:
 
     def observe(self, state: MusculoskeletalArmState) -> ArmObs:
         lmt = self.mtu_lengths(state.q)
-        f = mus.forces(self.params, state.muscle, lmt)
-        lm = state.muscle.fiber_length_m
-        muscles = MuscleObs(activation=state.muscle.activation, active_force_n=f.active_force_n,
+        m = self.n_muscles
+        real = mus.MuscleState(state.muscle.activation[:m], state.muscle.fiber_length_m[:m])
+        f = mus.forces(self.params, real, lmt)
+        lm = real.fiber_length_m
+        muscles = MuscleObs(activation=real.activation, active_force_n=f.active_force_n,
                             passive_force_n=f.passive_force_n, force_n=f.tendon_force_n,
                             fiber_length_m=lm, mtu_length_m=lmt)
         return ArmObs(q=state.q, qd=state.qd, hand=hand_position(state.q, self.config.segments_m),
