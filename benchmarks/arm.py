@@ -9,6 +9,7 @@ call minus the median run. Reported as JSON: {"fast": {"1": steps_per_s, ...}, "
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
@@ -57,7 +58,8 @@ def main(argv=None) -> int:
     result = {"compile_s": {}, "config": vars(args) | {"cpu_count": os.cpu_count(), "machine": platform.machine(),
                                                        "jax": jax.__version__, "backend": jax.default_backend()}}
     for backend in args.backends:
-        arm = make_arm("musculoskeletal", backend=backend)
+        with contextlib.redirect_stdout(sys.stderr):  # importing MJX prints optional-backend notices on stdout
+            arm = make_arm("musculoskeletal", backend=backend)
         steps = args.steps if backend == "fast" else args.mjx_steps
         result[backend] = {}
         for b in args.batches:
