@@ -1,15 +1,23 @@
 """Firing rates and mean weight gains per training epoch of a `jaxarm train` run, beside the original's.
 
     python experiments/training_history.py runs/simple_left/results.json [--markdown]
+    python experiments/training_history.py runs/simple_left/results.json --percentiles [--markdown]
 
 The reference row per epoch is the original NEURON model's run on the simple arm (left target, its seeds), as
 measured for the spec (``../shared/spec/original_model.md`` §10): rates = mean over the last 10 s of each 30 s epoch,
 gains = mean wgain of each pathway at the end of the epoch. Our numbers are the means over the run's networks.
+
+The original is one network. ``--percentiles`` reads the run's per-network ``history.npz`` (written next to
+results.json) and prints, per epoch and column, the original's value as a percentile among our networks (the
+percentage of our networks below it; 0 or 100: outside all of them), with our 10-90 % range.
 """
 from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
+
+import numpy as np
 
 from jaxarm.analysis.paper import ORIGINAL_HISTORY as ORIGINAL
 from jaxarm.analysis.paper import ORIGINAL_HISTORY_GAINS as GAINS
@@ -24,16 +32,53 @@ def rows(results: dict):
         yield e + 1, ours, ORIGINAL.get(e + 1)
 
 
+def per_network(history: dict) -> np.ndarray:
+    """(epochs, networks, columns) in the column order RATES + GAINS, from a loaded ``history.npz``."""
+    pops, pws = list(history["populations"]), list(history["pathways"])
+    rates = history["rates_last10s_hz"][:, :, [pops.index(p) for p in RATES]]
+    gains = history["mean_wgain"][:, :, [pws.index(g) for g in GAINS]]
+    return np.concatenate([rates, gains], axis=2)
+
+
+def percentile_rows(history: dict):
+    """Per epoch with an original row: (epoch, [(percentile, p10, p90) per column])."""
+    values = per_network(history)
+    for e in range(values.shape[0]):
+        orig = ORIGINAL.get(e + 1)
+        if orig is None:
+            continue
+        cols = []
+        for j, ref in enumerate(orig):
+            ours = values[e, :, j]
+            cols.append((100.0 * float(np.mean(ours < ref)), *np.percentile(ours, [10, 90]).tolist()))
+        yield e + 1, cols
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("results", help="results.json of a `jaxarm train` run")
     ap.add_argument("--markdown", action="store_true", help="print a Markdown table (ours / original per cell)")
+    ap.add_argument("--percentiles", action="store_true",
+                    help="the original's percentile among our networks (needs history.npz beside results.json)")
     args = ap.parse_args(argv)
-    results = json.loads(open(args.results).read())
     header = ("epoch",) + RATES + GAINS
     if args.markdown:
         print("| " + " | ".join(header) + " |")
         print("|" + "---|" * len(header))
+    if args.percentiles:
+        path = Path(args.results).parent / "history.npz"
+        if not path.exists():
+            ap.error(f"{path} not found: runs written before history.npz existed hold only the means")
+        for epoch, cols in percentile_rows(dict(np.load(path))):
+            if args.markdown:
+                cells = [f"{p:.0f} ({lo:.2f}–{hi:.2f})" if j < len(RATES) else f"{p:.0f} ({lo:.3f}–{hi:.3f})"
+                         for j, (p, lo, hi) in enumerate(cols)]
+                print(f"| {epoch} | " + " | ".join(cells) + " |")
+            else:
+                print(json.dumps({"epoch": epoch, "original_percentile": [c[0] for c in cols],
+                                  "ours_p10": [c[1] for c in cols], "ours_p90": [c[2] for c in cols]}))
+        return 0
+    results = json.loads(open(args.results).read())
     for epoch, ours, orig in rows(results):
         cells = [f"{o:.2f}" if i < len(RATES) else f"{o:.3f}" for i, o in enumerate(ours)]
         if orig is not None:

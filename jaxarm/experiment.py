@@ -10,8 +10,9 @@ epoch and ends with the same results as an uninterrupted run.
 
 Outputs in ``--out`` (one subfolder per target when several are given):
 ``results.json`` (success_count, per-network seed/success/distances/reach metrics, the naive networks' results,
-per-epoch rates and weights, the full configuration), ``trajectories.npz`` (t, q, hand, u, distance for the trained
-and naive networks), ``checkpoints/`` (orbax: wiring, learned gains, babbling state) and ``reach.png`` (hand paths
+per-epoch rates and weights averaged over networks, the full configuration), ``history.npz`` (the same per-epoch
+rates, gains, distances and critic counts for every network: arrays (epochs, networks, ...)), ``trajectories.npz``
+(t, q, hand, u, distance for the trained and naive networks), ``checkpoints/`` (orbax: wiring, learned gains, babbling state) and ``reach.png`` (hand paths
 and velocity profiles, trained vs naive, in the style of the paper's Fig. 6).
 """
 from __future__ import annotations
@@ -223,6 +224,10 @@ def write_outputs(run: Run, trained_res, naive_res, history, wall_s, epochs_run,
     }
     run.out.mkdir(parents=True, exist_ok=True)
     (run.out / "results.json").write_text(json.dumps(results, indent=1))
+    # per network and epoch (results.json holds the means): what a comparison with the original's one network needs
+    np.savez_compressed(run.out / "history.npz", seeds=np.asarray(seeds), populations=np.asarray(POP_NAMES),
+                        pathways=np.asarray([pw.name for pw in PATHWAYS]),
+                        **{k: v for k, v in hist.items() if k != "lost_spikes"})
     t = np.arange(trained_res.hand_m.shape[1]) * dt
     np.savez_compressed(run.out / "trajectories.npz", t=t, q=np.asarray(trained_res.q_rad),
                         hand=np.asarray(trained_res.hand_m), u=np.asarray(trained_res.u),

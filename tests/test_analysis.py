@@ -323,3 +323,40 @@ def test_selection_counts_reads_the_search_ranking_and_its_own_evaluations(tmp_p
     assert "1.5/3" in mod.markdown([mod.selection_count(tmp_path)])
     with pytest.raises(SystemExit, match="not a finished"):
         mod.selection_count(tmp_path / "nothing")
+
+
+def test_training_history_places_the_original_among_our_networks(tmp_path):
+    # experiments/training_history.py --percentiles: the original's one network as a percentile of ours per epoch
+    import importlib.util
+    from pathlib import Path
+
+    from jaxarm.analysis.paper import ORIGINAL_HISTORY, ORIGINAL_HISTORY_GAINS, ORIGINAL_HISTORY_RATES
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "training_history.py"
+    spec = importlib.util.spec_from_file_location("training_history", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    pops = ["IML", "ES", "IS", "ISL", "EM", "IM"]                 # any order: the script looks the names up
+    pws = list(ORIGINAL_HISTORY_GAINS)[::-1] + ["P->ES"]
+    n_epochs, n_net = 2, 10
+    # network i holds the original's value x (1 + (i - 6.5) / 100): 7 of 10 below it, every column, every epoch
+    scale = 1.0 + (np.arange(n_net) - 6.5) / 100.0
+    rates = np.zeros((n_epochs, n_net, 6))
+    gains = np.ones((n_epochs, n_net, len(pws)))
+    for e in range(n_epochs):
+        orig = ORIGINAL_HISTORY[e + 1]
+        for j, p in enumerate(ORIGINAL_HISTORY_RATES):
+            rates[e, :, pops.index(p)] = orig[j] * scale
+        for j, g in enumerate(ORIGINAL_HISTORY_GAINS):
+            gains[e, :, pws.index(g)] = orig[len(ORIGINAL_HISTORY_RATES) + j] * scale
+    hist = {"populations": np.array(pops), "pathways": np.array(pws), "rates_last10s_hz": rates, "mean_wgain": gains}
+    rows = list(mod.percentile_rows(hist))
+    assert [e for e, _ in rows] == [1, 2]
+    for _, cols in rows:
+        assert len(cols) == len(ORIGINAL_HISTORY_RATES) + len(ORIGINAL_HISTORY_GAINS)
+        assert all(p == 70.0 and lo < hi for p, lo, hi in cols)
+    np.savez(tmp_path / "history.npz", **hist)
+    (tmp_path / "results.json").write_text("{}")
+    assert mod.main([str(tmp_path / "results.json"), "--percentiles"]) == 0
+    with pytest.raises(SystemExit):   # no history.npz: a clear error, not a traceback
+        mod.main([str(tmp_path / "nowhere" / "results.json"), "--percentiles"])

@@ -88,6 +88,11 @@ def test_train_cli_writes_results(tmp_path, capsys):
     assert res["success_count"] == sum(n["success"] for n in res["networks"])
     traj = np.load(out / "trajectories.npz")
     assert traj["q"].shape == (2, 31, 2) and traj["t"][-1] == pytest.approx(0.3)
+    hist = np.load(out / "history.npz")   # per network; results.json holds the means over networks
+    assert hist["mean_wgain"].shape == (1, 2, len(hist["pathways"])) and list(hist["seeds"]) == [n["seed"] for n in res["networks"]]
+    es_es = list(hist["pathways"]).index("ES->ES")
+    assert hist["mean_wgain"][0, :, es_es].mean() == pytest.approx(res["history"]["mean_wgain"]["ES->ES"][0], abs=1e-4)
+    assert hist["rates_last10s_hz"].shape == (1, 2, 6) and hist["rewards"].shape == (1, 2)
     assert (out / "reach.png").stat().st_size > 0
     # re-test the trained networks with another readout gain: same weights, other metaparameter
     assert main(["test", "--from", str(out), "--set", "v_em_max=30", "--out", str(tmp_path / "t30")]) == 0
