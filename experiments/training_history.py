@@ -9,7 +9,8 @@ gains = mean wgain of each pathway at the end of the epoch. Our numbers are the 
 
 The original is one network. ``--percentiles`` reads the run's per-network ``history.npz`` (written next to
 results.json) and prints, per epoch and column, the original's value as a percentile among our networks (the
-percentage of our networks below it; 0 or 100: outside all of them), with our 10-90 % range.
+percentage of our networks below it, ties half; 0 or 100: outside all of them), with our 10-90 % range
+(``jaxarm.analysis.paper.original_history_percentiles``).
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ import numpy as np
 from jaxarm.analysis.paper import ORIGINAL_HISTORY as ORIGINAL
 from jaxarm.analysis.paper import ORIGINAL_HISTORY_GAINS as GAINS
 from jaxarm.analysis.paper import ORIGINAL_HISTORY_RATES as RATES
+from jaxarm.analysis.paper import original_history_percentiles
 
 
 def rows(results: dict):
@@ -30,28 +32,6 @@ def rows(results: dict):
     for e in range(n_epochs):
         ours = [h["rates_last10s_hz"][p][e] for p in RATES] + [h["mean_wgain"][g][e] for g in GAINS]
         yield e + 1, ours, ORIGINAL.get(e + 1)
-
-
-def per_network(history: dict) -> np.ndarray:
-    """(epochs, networks, columns) in the column order RATES + GAINS, from a loaded ``history.npz``."""
-    pops, pws = list(history["populations"]), list(history["pathways"])
-    rates = history["rates_last10s_hz"][:, :, [pops.index(p) for p in RATES]]
-    gains = history["mean_wgain"][:, :, [pws.index(g) for g in GAINS]]
-    return np.concatenate([rates, gains], axis=2)
-
-
-def percentile_rows(history: dict):
-    """Per epoch with an original row: (epoch, [(percentile, p10, p90) per column])."""
-    values = per_network(history)
-    for e in range(values.shape[0]):
-        orig = ORIGINAL.get(e + 1)
-        if orig is None:
-            continue
-        cols = []
-        for j, ref in enumerate(orig):
-            ours = values[e, :, j]
-            cols.append((100.0 * float(np.mean(ours < ref)), *np.percentile(ours, [10, 90]).tolist()))
-        yield e + 1, cols
 
 
 def main(argv=None) -> int:
@@ -69,7 +49,7 @@ def main(argv=None) -> int:
         path = Path(args.results).parent / "history.npz"
         if not path.exists():
             ap.error(f"{path} not found: runs written before history.npz existed hold only the means")
-        for epoch, cols in percentile_rows(dict(np.load(path))):
+        for epoch, cols in original_history_percentiles(dict(np.load(path))):
             if args.markdown:
                 cells = [f"{p:.0f} ({lo:.2f}–{hi:.2f})" if j < len(RATES) else f"{p:.0f} ({lo:.3f}–{hi:.3f})"
                          for j, (p, lo, hi) in enumerate(cols)]

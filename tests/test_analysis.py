@@ -330,6 +330,7 @@ def test_training_history_places_the_original_among_our_networks(tmp_path):
     import importlib.util
     from pathlib import Path
 
+    from jaxarm.analysis import paper
     from jaxarm.analysis.paper import ORIGINAL_HISTORY, ORIGINAL_HISTORY_GAINS, ORIGINAL_HISTORY_RATES
 
     path = Path(__file__).resolve().parents[1] / "experiments" / "training_history.py"
@@ -350,7 +351,7 @@ def test_training_history_places_the_original_among_our_networks(tmp_path):
         for j, g in enumerate(ORIGINAL_HISTORY_GAINS):
             gains[e, :, pws.index(g)] = orig[len(ORIGINAL_HISTORY_RATES) + j] * scale
     hist = {"populations": np.array(pops), "pathways": np.array(pws), "rates_last10s_hz": rates, "mean_wgain": gains}
-    rows = list(mod.percentile_rows(hist))
+    rows = paper.original_history_percentiles(hist)
     assert [e for e, _ in rows] == [1, 2]
     for _, cols in rows:
         assert len(cols) == len(ORIGINAL_HISTORY_RATES) + len(ORIGINAL_HISTORY_GAINS)

@@ -203,3 +203,36 @@ def _rate_percentiles(networks: list[dict]) -> dict | None:
         return None
     return {p: _percentile_of(np.round([n["test_rates_hz"][p] for n in networks], 1), r)
             for p, r in ORIGINAL_TEST_RATES_HZ.items()}
+
+
+def per_network_history(history) -> np.ndarray:
+    """(epochs, networks, 13) per-network training history in the column order of :data:`ORIGINAL_HISTORY`
+    (rates of ORIGINAL_HISTORY_RATES in Hz, then mean gains of ORIGINAL_HISTORY_GAINS), from a run's
+    ``history.npz`` (a mapping with ``populations``, ``pathways``, ``rates_last10s_hz`` and ``mean_wgain``)."""
+    pops, pws = [str(p) for p in history["populations"]], [str(p) for p in history["pathways"]]
+    rates = np.asarray(history["rates_last10s_hz"], float)[:, :, [pops.index(p) for p in ORIGINAL_HISTORY_RATES]]
+    gains = np.asarray(history["mean_wgain"], float)[:, :, [pws.index(g) for g in ORIGINAL_HISTORY_GAINS]]
+    return np.concatenate([rates, gains], axis=2)
+
+
+def original_history_percentiles(history) -> list[tuple[int, list[tuple[float, float, float]]]]:
+    """Where the original's one training run sits among our networks, epoch by epoch (spec §10 beside ours).
+
+    ``history``: a run's ``history.npz`` as a mapping (:func:`per_network_history`). Returns, for every epoch that
+    both have, (epoch, [(percentile, p10, p90) per column of :data:`ORIGINAL_HISTORY`]): the percentile of the
+    original's value among ours (ties count half; ours rounded to the reference's precision, 0.01 Hz and 0.001)
+    and our 10th and 90th percentiles (unrounded)."""
+    values = per_network_history(history)
+    n_rates = len(ORIGINAL_HISTORY_RATES)
+    out = []
+    for e in range(values.shape[0]):
+        ref = ORIGINAL_HISTORY.get(e + 1)
+        if ref is None:
+            continue
+        cols = []
+        for j, x in enumerate(ref):
+            ours = values[e, :, j]
+            p10, p90 = np.percentile(ours, [10, 90])
+            cols.append((_percentile_of(np.round(ours, 2 if j < n_rates else 3), x), float(p10), float(p90)))
+        out.append((e + 1, cols))
+    return out
