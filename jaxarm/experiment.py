@@ -381,8 +381,14 @@ def test_main(argv: list[str] | None = None) -> int:
         ap.error(str(e))
     from jaxarm.checkpoint import Checkpointer
 
+    if not (args.src / "checkpoints").is_dir():
+        ap.error(f"--from {args.src}: no checkpoints/ folder there; give the --out folder of a `jaxarm train` run "
+                 "(or a target's seeds/ or top30/ folder of a `jaxarm reproduce` run)")
     with Checkpointer(args.src / "checkpoints") as ckpt:
-        meta = ckpt.read_meta()
+        try:
+            meta = ckpt.read_meta()
+        except FileNotFoundError as e:
+            ap.error(f"--from {args.src}: {e}; the training run wrote no completed epoch yet")
     if meta["epochs"] != ckpt.latest_step():
         raise SystemExit(f"{args.src} finished {ckpt.latest_step()} of {meta['epochs']} epochs: rerun `jaxarm train` "
                          "with the same options to finish it first")

@@ -103,6 +103,12 @@ def test_train_cli_writes_results(tmp_path, capsys):
         with pytest.raises(SystemExit):
             main(["train", "--out", str(tmp_path / "bad")] + bad)
         assert msg in capsys.readouterr().err
+    # re-testing a folder that holds no trained networks: a clear error naming --from, no traceback
+    (tmp_path / "unfinished" / "checkpoints").mkdir(parents=True)
+    for src, msg in ((tmp_path / "nowhere", "no checkpoints/ folder"), (tmp_path / "unfinished", "no completed epoch")):
+        with pytest.raises(SystemExit):
+            main(["test", "--from", str(src)])
+        assert "--from" in (err := capsys.readouterr().err) and msg in err
 
 
 def test_loop_config_errors_name_the_field():
