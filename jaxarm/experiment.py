@@ -34,7 +34,7 @@ from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, LoopConfig
 from jaxarm.network import NetworkConfig
 from jaxarm.network.wiring import PATHWAYS
-from jaxarm.task.config import TARGET_ANGLES_RAD, TaskConfig
+from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
 from jaxarm.train import EpochSummary, Trained, make_train
 
 
@@ -283,14 +283,22 @@ def _add_common(ap):
     ap.add_argument("--epochs", type=int, default=12, help="training epochs (paper: 12)")
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
+    _add_test_noise_option(ap)
     ap.add_argument("--no-progress", action="store_true")
+
+
+def _add_test_noise_option(ap, default="unlimited"):
+    ap.add_argument("--test-em-noise-events", choices=TEST_EM_NOISE_EVENTS, default=default,
+                    help="EM test noise: unlimited (default) or netstim (each EM cell's noise stops after "
+                         "ceil(test ms x rate / 1000) events, as the original's NetStims; TaskConfig."
+                         "test_em_noise_events)")
 
 
 def _configs(args) -> list[tuple[str, LoopConfig]]:
     out = []
     for target in args.target:
         task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
-                          test_duration_s=args.test_s)
+                          test_duration_s=args.test_s, test_em_noise_events=args.test_em_noise_events)
         out.append((target, LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task)))
     return out
 
@@ -374,6 +382,7 @@ def test_main(argv: list[str] | None = None) -> int:
                          "em_noise_rate_test_hz=150); the trained weights are kept")
     ap.add_argument("--threshold-test", choices=("every_step", "on_event"), default=None,
                     help="test with this threshold test (default: as trained); the trained weights are kept")
+    _add_test_noise_option(ap)
     args = ap.parse_args(argv)
     try:
         overrides = _parse_overrides(args.overrides)
@@ -393,7 +402,7 @@ def test_main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"{args.src} finished {ckpt.latest_step()} of {meta['epochs']} epochs: rerun `jaxarm train` "
                          "with the same options to finish it first")
     task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
-                      test_duration_s=args.test_s or 1.0)
+                      test_duration_s=args.test_s or 1.0, test_em_noise_events=args.test_em_noise_events)
     # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
     network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {}))
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)

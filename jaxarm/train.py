@@ -23,6 +23,7 @@ import jax.numpy as jnp
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, ClosedLoop, LoopConfig
+from jaxarm.network import noise as noise_mod
 
 
 class Trained(NamedTuple):
@@ -130,6 +131,11 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
         rates = bab.em_noise_rates_in_test(mp)
         # The original re-seeds the noise streams identically at every run(), the test included.
         state = loop.init(trained.noise_key, trained.wgain, trained.babble, rates)
+        if task.test_em_noise_events == "netstim":
+            # a NetStim stops once its event count reaches number = tstop * rate / 1000 (a real number)
+            number = task.test_duration_s * jnp.asarray(mp.em_noise_rate_test_hz, jnp.float32)
+            state = state._replace(net=state.net._replace(noise=noise_mod.limit_em_events(
+                config.network, state.net.noise, jnp.ceil(number - 1e-4).astype(jnp.int32))))
         hand0, q0 = loop.arm.observe(state.arm).hand, loop.arm.observe(state.arm).q
         state, rec = loop.run(trained.wiring, state, key, mp, task.test_steps, learn=False)
         hand = jnp.concatenate([hand0[None], rec.hand_m])

@@ -98,6 +98,12 @@ def test_train_cli_writes_results(tmp_path, capsys):
     assert main(["test", "--from", str(out), "--set", "v_em_max=30", "--out", str(tmp_path / "t30")]) == 0
     t30 = json.loads((tmp_path / "t30" / "results.json").read_text())
     assert t30["config"]["metaparams"]["v_em_max"] == 30.0
+    # the original's finite test-noise trains (NetStim `number`, here ceil(0.3 s x 99.01 Hz) = 30 events per EM
+    # cell; the kernels' budget is tested in test_native_kernel.py): accepted and recorded in the config
+    assert main(["test", "--from", str(out), "--test-s", "0.3", "--test-em-noise-events", "netstim", "--out",
+                 str(tmp_path / "tn")]) == 0
+    tn = json.loads((tmp_path / "tn" / "results.json").read_text())
+    assert tn["config"]["loop"]["task"]["test_em_noise_events"] == "netstim"
     for bad, msg in ((["--set", "v_em_max=5"], "outside its range"), (["--set", "nope=1"], "expected NAME=VALUE"),
                      (["--set", "epochs=3"], "use --epochs"), (["--dt-ms", "0.3"], "dt_ms = 0.3: must divide 1 ms")):
         with pytest.raises(SystemExit):
@@ -118,6 +124,8 @@ def test_loop_config_errors_name_the_field():
         LoopConfig(arm="robot")
     with pytest.raises(ConfigError, match="critic_error"):
         LoopConfig(critic_error="polar")
+    with pytest.raises(ConfigError, match="test_em_noise_events"):
+        TaskConfig(test_em_noise_events="some")
 
 
 def test_angle_critic_compares_joint_space_distance():

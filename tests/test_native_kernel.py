@@ -133,3 +133,37 @@ def test_auto_falls_back_to_xla_and_native_says_why(monkeypatch):
     assert not Network(NetworkConfig(kernel="auto")).uses_native_kernel
     with pytest.raises(RuntimeError, match="no C.. compiler"):
         Network(NetworkConfig(kernel="native")).uses_native_kernel
+
+
+@needs_native
+def test_em_event_budget_stops_the_test_noise_in_both_kernels():
+    """The original's test noise to EM is a NetStim with a finite `number` (spec §5): with a budget of B events an
+    EM AMPA lane emits exactly min(B, its unlimited count) events; the native and XLA kernels agree; other lanes
+    and an unlimited run are untouched."""
+    from jaxarm.network import noise as N
+
+    nx, nn = pair()
+    cfg = nx.config
+    wiring = nx.make_wiring(jax.random.key(5))
+    s0 = start(nx, jax.random.key(6), em_rates=(99.01,) * 4)
+    budget = 25   # ~ the mean events of 250 ms at 99 Hz: about half the EM lanes run out within the run below
+    limited = s0._replace(noise=N.limit_em_events(cfg, s0.noise, budget))
+    steps = 1000
+    drawn = np.asarray(jax.vmap(lambda m: N.noise_counts(s0.noise, m))(jnp.arange(1, steps + 1))).sum(axis=0)
+    em = nx.pops.slice("EM")
+    out = {}
+    for net in (nx, nn):
+        out[net.config.kernel] = jax.jit(lambda s, net=net: net.run(wiring, s, PARAMS, steps))(limited)
+    (sx, spx), (sn, spn) = out["xla"], out["native"]
+    np.testing.assert_array_equal(np.asarray(spx), np.asarray(spn))
+    np.testing.assert_array_equal(np.asarray(sx.noise.events_left), np.asarray(sn.noise.events_left))
+    left = np.asarray(sn.noise.events_left)
+    spent = budget - left[0, em]
+    np.testing.assert_array_equal(spent, np.minimum(drawn[0, em], budget).astype(np.int32))
+    assert 0.2 < np.mean(left[0, em] == 0) < 0.9, "some EM lanes should have run out, not all"
+    others = np.ones_like(left, bool)
+    others[0, em] = False
+    assert np.all(left[others] == N.UNLIMITED_EVENTS - drawn[others].astype(np.int64))
+    # fewer EM inputs than the unlimited run from the first exhausted lane on; identical before it
+    _, sp_free = jax.jit(lambda s: nn.run(wiring, s, PARAMS, steps))(s0)
+    assert int(np.asarray(spn)[:, em].sum()) < int(np.asarray(sp_free)[:, em].sum())

@@ -226,7 +226,7 @@ class Network:
         m = state.step + 1
         t_ms = m.astype(jnp.float32) * c.dt_ms
         syn_in, ring = syn_mod.read_slot(state.ring, m, self.n_slots, n)
-        counts = noise_mod.noise_counts(state.noise, m)
+        counts, noise = noise_mod.draw_events(state.noise, m)
         drive = counts * self.noise_weights  # (3, n): AMPA, GABA-prox, GABA-dist
         cells, net_spiked = cell_mod.cell_step(
             state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
@@ -235,7 +235,7 @@ class Network:
         p, p_spiked = proprio_mod.p_step(state.p, m)
         spiked = jnp.concatenate([net_spiked, p_spiked])
         state = state._replace(
-            step=m, cells=cells, p=p, ring=ring,
+            step=m, cells=cells, p=p, ring=ring, noise=noise,
             prev_spike_ms=jnp.where(spiked, state.last_spike_ms, state.prev_spike_ms),
             last_spike_ms=jnp.where(spiked, t_ms, state.last_spike_ms),
             spike_count=state.spike_count + spiked.astype(jnp.int32))

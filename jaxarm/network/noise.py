@@ -53,10 +53,16 @@ DEFAULT_EM_RATE_HZ = 200.0
 _GOLDEN = np.uint32(0x9E3779B9)
 
 
+#: ``events_left`` of a lane without an event limit (more events than any run can draw).
+UNLIMITED_EVENTS = 1 << 30
+
+
 class NoiseState(NamedTuple):
     step_seed: jnp.ndarray    # () uint32, mixed with the step counter
     lane_key: jnp.ndarray     # (3, n_cells) uint32, one key per lane
     thresholds: jnp.ndarray   # (kmax, 3, n_cells) uint32, Poisson CDF thresholds for this dt
+    events_left: jnp.ndarray  # (3, n_cells) int32, events a lane may still emit (a NetStim's `number`; see
+    #                           limit_em_events); UNLIMITED_EVENTS unless limited
 
 
 def hash32(x):
@@ -114,7 +120,18 @@ def init_noise(config: NetworkConfig, key, em_rates_hz=None) -> NoiseState:
     lane_key = hash32(hash32(lanes * _GOLDEN + seeds[1]))
     em = jnp.full((4,), DEFAULT_EM_RATE_HZ, jnp.float32) if em_rates_hz is None else em_rates_hz
     thresholds = poisson_thresholds(lane_rates_hz(config, em), config.dt_ms, config.noise_kmax)
-    return NoiseState(step_seed=seeds[0], lane_key=lane_key, thresholds=thresholds)
+    return NoiseState(step_seed=seeds[0], lane_key=lane_key, thresholds=thresholds,
+                      events_left=jnp.full((3, config.n_cells), UNLIMITED_EVENTS, jnp.int32))
+
+
+def limit_em_events(config: NetworkConfig, noise: NoiseState, max_events) -> NoiseState:
+    """Let every EM AMPA lane emit at most ``max_events`` more events (a traced int is fine); other lanes unchanged.
+
+    The original's test noise to EM is a NetStim per cell with ``number = tstop * rate / 1000`` (99 for 1 s at
+    99.01 Hz; spec §5): its Poisson train stops after that many events, for about half the cells before the end
+    of the 1 s test. Events beyond the budget within a step are dropped, as the train's last events would be."""
+    em = Populations(config).slice("EM")
+    return noise._replace(events_left=noise.events_left.at[0, em].set(jnp.asarray(max_events, jnp.int32)))
 
 
 def set_em_rates(config: NetworkConfig, noise: NoiseState, em_rates_hz) -> NoiseState:
@@ -124,7 +141,15 @@ def set_em_rates(config: NetworkConfig, noise: NoiseState, em_rates_hz) -> Noise
 
 
 def noise_counts(noise: NoiseState, step):
-    """(3, n_cells) float32 number of background events of every lane in clock step ``step`` (int)."""
+    """(3, n_cells) float32 number of background events of every lane in clock step ``step`` (int), before any
+    event limit (:func:`draw_events` applies it)."""
     s = hash32(jnp.asarray(step).astype(jnp.uint32) * _GOLDEN + noise.step_seed)
     u = hash32(noise.lane_key ^ s)
     return jnp.sum(u[None] >= noise.thresholds, axis=0, dtype=jnp.int32).astype(jnp.float32)
+
+
+def draw_events(noise: NoiseState, step):
+    """The events of clock step ``step`` within each lane's budget: ((3, n_cells) float32 counts, noise with the
+    budget spent). Without a limit the counts are :func:`noise_counts`'s."""
+    counts = jnp.minimum(noise_counts(noise, step).astype(jnp.int32), noise.events_left)
+    return counts.astype(jnp.float32), noise._replace(events_left=noise.events_left - counts)

@@ -29,6 +29,8 @@ TARGET_ANGLES_RAD: dict[str, tuple[float, float]] = {
 }
 #: The two targets of the paper.
 PAPER_TARGETS = ("left", "bottom")
+#: Choices of TaskConfig.test_em_noise_events.
+TEST_EM_NOISE_EVENTS = ("unlimited", "netstim")
 
 
 def forward_kinematics_m(q_rad, segments_m=ARM_SEGMENTS_M) -> tuple[float, float]:
@@ -53,6 +55,11 @@ class TaskConfig:
         epoch_duration_s: simulated length of one training epoch, s (original: 30 s).
         update_interval_s: the closed loop's period (arm update, readout, error sample), s (original aDT = 10 ms).
         segments_m: (upper arm, forearm) lengths of the forward kinematics that define the target positions, m.
+        test_em_noise_events: "unlimited" (default: every EM cell's test noise runs for the whole test) or
+            "netstim": as the original's NetStims with ``number = tstop * rate / 1000`` (spec §5), each EM cell's
+            AMPA test noise stops once it has emitted ceil(test duration in ms x em_noise_rate_test_hz / 1000)
+            events (100 for 1 s at 99.01 Hz; a NetStim stops when its count reaches ``number``), which for about
+            half the cells happens before the 1 s test ends. Training noise is never limited.
     """
 
     target: str = "left"
@@ -63,9 +70,11 @@ class TaskConfig:
     epoch_duration_s: float = 30.0
     update_interval_s: float = 0.010
     segments_m: tuple[float, float] = ARM_SEGMENTS_M
+    test_em_noise_events: str = "unlimited"
 
     def __post_init__(self):
         check_choice(self, "target", TARGET_ANGLES_RAD)
+        check_choice(self, "test_em_noise_events", TEST_EM_NOISE_EVENTS)
         _check_posture(self)
         check_range(self, "success_radius_m", 0.0, 0.5, lo_open=True)
         check_range(self, "update_interval_s", 0.0, 0.1, lo_open=True)

@@ -130,7 +130,7 @@ def status() -> str:
 
 
 #: Input -> output aliases: the state is updated in place (no copy of the ring per chunk).
-ALIASES = {0: 0, 1: 1, 2: 2, 3: 3, 4: 4, 5: 5, 6: 6, 7: 7, 8: 8, 13: 9, 15: 10, 16: 11, 17: 12, 18: 13}
+ALIASES = {0: 0, 1: 1, 2: 2, 3: 3, 4: 4, 5: 5, 6: 6, 7: 7, 8: 8, 13: 9, 15: 10, 16: 11, 17: 12, 18: 13, 30: 14}
 
 
 def _as(x, dtype):
@@ -162,7 +162,7 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
         _as(wiring.target[ps], jnp.int32), _as(wiring.weight[ps], jnp.float32), _as(wiring.nmda[ps], jnp.float32),
         jnp.asarray(net.native_cell_floats), jnp.asarray(net.cell_constants.n_refractory, jnp.int32),
         jnp.asarray(net.noise_weights), jnp.asarray(net.native_cell_group), jnp.asarray(net.native_cell_row),
-        *groups,
+        _as(s.noise.events_left, jnp.int32), *groups,
     ]
     n, n_all = c.n_cells, c.n_all
     f32, i32 = jnp.float32, jnp.int32
@@ -170,16 +170,18 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
     out_types = [sds((), i32)] + [sds((n,), f32)] * 6 + [sds((n,), i32), sds((c.n_p,), i32), sds(s.ring.shape, f32),
                                                       sds(s.pdope_ms.shape, f32), sds((n_all,), f32),
                                                       sds((n_all,), f32), sds((n_all,), i32),
-                                                      sds((n_steps, n_all), jnp.bool_)]
+                                                      sds((3, n), i32), sds((n_steps, n_all), jnp.bool_)]
     call = jax.ffi.ffi_call(TARGET, out_types, vmap_method="expand_dims", input_output_aliases=ALIASES)
     outs = call(*args, n_steps=np.int64(n_steps), n_slots=np.int64(net.n_slots),
                 p_syn_offset=np.int64(ps.start), sequential=np.int64(c.event_summation == "sequential"),
                 on_event=np.int64(c.threshold_test == "on_event"),
                 dt_ms=np.float32(c.dt_ms), excitatory=np.asarray(lay.group_is_excitatory, np.int64),
                 n_threads=np.int64(c.native_threads))
-    (step, ampa, nmda, gprox, gdist, ahp, excess, since, p_next, ring, pdope, last, prev, count, spikes) = outs
+    (step, ampa, nmda, gprox, gdist, ahp, excess, since, p_next, ring, pdope, last, prev, count, events_left,
+     spikes) = outs
     cells = cells._replace(ampa=ampa, nmda=nmda, gaba_prox=gprox, gaba_dist=gdist, ahp=ahp, vthc_excess=excess,
                            steps_since_spike=since)
     state = s._replace(step=step, cells=cells, p=s.p._replace(next_step=p_next), ring=ring, pdope_ms=pdope,
-                       last_spike_ms=last, prev_spike_ms=prev, spike_count=count)
+                       last_spike_ms=last, prev_spike_ms=prev, spike_count=count,
+                       noise=s.noise._replace(events_left=events_left))
     return state, spikes

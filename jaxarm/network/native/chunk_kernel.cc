@@ -4,7 +4,7 @@
 // Same model, same order of operations per step as the XLA path:
 //   1. P -> ES input of the whole chunk written into the ring at the chunk start (deliver_p_window);
 //   2. per step m: read and clear ring slot m % n_slots; Poisson noise counts from the integer hash
-//      (bit-identical to noise.noise_counts); INTF6 cell update (cell.cell_step); P trains (proprio.p_step);
+//      (bit-identical to noise.noise_counts), limited by each lane's event budget (noise.draw_events); INTF6 cell update (cell.cell_step); P trains (proprio.p_step);
 //      last / previous spike times and spike counts; spikes of the step delivered into the ring at
 //      (m + delay) % n_slots and plastic inputs tagged.
 // The XLA path delivers after blocks of L <= the shortest delay and refractory period; delivering each spike at
@@ -43,16 +43,16 @@ constexpr int kDelayBits = 10;
 enum In {
   kStep, kAmpa, kNmda, kGabaProx, kGabaDist, kAhp, kExcess, kSince, kPNext, kPInterval, kStepSeed, kLaneKey,
   kThresholds, kRing, kWgain, kPdope, kLast, kPrev, kCount, kWindow, kPPre, kPDelay, kPTarget, kPWeight, kPNmda,
-  kCellF, kNRef, kNoiseW, kCellGroup, kCellRow, kGroupTables  // then 6 tables per group
+  kCellF, kNRef, kNoiseW, kCellGroup, kCellRow, kEventsLeft, kGroupTables  // then 6 tables per group
 };
 constexpr int kTablesPerGroup = 6;  // out_syn, out_packed, out_weight, out_nmda, in_plastic, in_plastic_pre
 // Outputs, in order.
 enum Out { oStep, oAmpa, oNmda, oGabaProx, oGabaDist, oAhp, oExcess, oSince, oPNext, oRing, oPdope, oLast, oPrev,
-           oCount, oSpikes, kNumOut };
+           oCount, oEventsLeft, oSpikes, kNumOut };
 // Per-network rank of every input (the rest of an input's dimensions are batch dimensions).
 constexpr int kBaseRankFixed[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0, 2, 3, 1, 1, 1, 1, 1, 1, 0, 1, 1, 1, 1, 1,
-                                  2, 1, 2, 1, 1};
-constexpr int kBaseRankOut[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2};
+                                  2, 1, 2, 1, 1, 2};
+constexpr int kBaseRankOut[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2};
 
 inline uint32_t hash32(uint32_t x) {
   x ^= x >> 16;
@@ -100,6 +100,15 @@ void noise_counts(int64_t lanes, int64_t kmax, uint32_t s, const uint32_t* __res
   for (int64_t k = 0; k < kmax; ++k) {
     const uint32_t* __restrict__ tk = thr + k * lanes;
     for (int64_t l = 0; l < lanes; ++l) cb[l] += (ub[l] >= tk[l]) ? 1 : 0;
+  }
+}
+
+// Each lane emits at most its remaining budget (a NetStim's `number`; unlimited lanes hold 2^30).
+void spend_budget(int64_t lanes, int32_t* __restrict__ cb, int32_t* __restrict__ left) {
+  for (int64_t l = 0; l < lanes; ++l) {
+    const int32_t c = std::min(cb[l], left[l]);
+    cb[l] = c;
+    left[l] -= c;
   }
 }
 
@@ -159,7 +168,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   static const int copies[][2] = {{kAmpa, oAmpa}, {kNmda, oNmda}, {kGabaProx, oGabaProx}, {kGabaDist, oGabaDist},
                                   {kAhp, oAhp}, {kExcess, oExcess}, {kSince, oSince}, {kPNext, oPNext},
                                   {kRing, oRing}, {kPdope, oPdope}, {kLast, oLast}, {kPrev, oPrev},
-                                  {kCount, oCount}};
+                                  {kCount, oCount}, {kEventsLeft, oEventsLeft}};
   for (const auto& c : copies) {
     const View& src = in[c[0]];
     const View& dst = out[c[1]];
@@ -180,6 +189,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   float* __restrict__ last = at<float>(out[oLast], flat);
   float* __restrict__ prev = at<float>(out[oPrev], flat);
   int32_t* __restrict__ count = at<int32_t>(out[oCount], flat);
+  int32_t* __restrict__ events_left = at<int32_t>(out[oEventsLeft], flat);
   bool* spikes = at<bool>(out[oSpikes], flat);
 
   const int32_t first_step = *at<int32_t>(in[kStep], I(kStep));
@@ -278,6 +288,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     float* __restrict__ inb = ring + (int64_t(m) % n_slots) * width;
     // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs
     noise_counts(3 * n, kmax, hash32(uint32_t(m) * kGolden + step_seed), lane_key, thr, ub, cb);
+    spend_budget(3 * n, cb, events_left);
     add_noise(n, cb, noise_w, inb);
     add_noise(2 * n, cb + n, noise_w + n, inb + 2 * n);
     // 2c. decay, refractory bookkeeping and V (the deviation every driving force of this step uses)
