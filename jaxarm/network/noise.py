@@ -53,7 +53,7 @@ DEFAULT_EM_RATE_HZ = 200.0
 _GOLDEN = np.uint32(0x9E3779B9)
 
 
-#: ``events_left`` of a lane without an event limit (more events than any run can draw).
+#: ``events_left`` of a lane without an event limit: such lanes (>= this value) never spend their budget.
 UNLIMITED_EVENTS = 1 << 30
 
 
@@ -150,6 +150,10 @@ def noise_counts(noise: NoiseState, step):
 
 def draw_events(noise: NoiseState, step):
     """The events of clock step ``step`` within each lane's budget: ((3, n_cells) float32 counts, noise with the
-    budget spent). Without a limit the counts are :func:`noise_counts`'s."""
-    counts = jnp.minimum(noise_counts(noise, step).astype(jnp.int32), noise.events_left)
-    return counts.astype(jnp.float32), noise._replace(events_left=noise.events_left - counts)
+    budget spent). Unlimited lanes (``events_left >= UNLIMITED_EVENTS``) give :func:`noise_counts`'s counts and
+    keep their value."""
+    left = noise.events_left
+    limited = left < UNLIMITED_EVENTS
+    counts = noise_counts(noise, step).astype(jnp.int32)
+    counts = jnp.where(limited, jnp.minimum(counts, left), counts)
+    return counts.astype(jnp.float32), noise._replace(events_left=jnp.where(limited, left - counts, left))

@@ -103,13 +103,23 @@ void noise_counts(int64_t lanes, int64_t kmax, uint32_t s, const uint32_t* __res
   }
 }
 
-// Each lane emits at most its remaining budget (a NetStim's `number`; unlimited lanes hold 2^30).
+// Each limited lane emits at most its remaining budget (a NetStim's `number`); lanes holding kUnlimitedEvents or
+// more are unlimited and never spend (noise.UNLIMITED_EVENTS). Only called in chunks where some lane is limited.
+constexpr int32_t kUnlimitedEvents = 1 << 30;
+
 void spend_budget(int64_t lanes, int32_t* __restrict__ cb, int32_t* __restrict__ left) {
   for (int64_t l = 0; l < lanes; ++l) {
-    const int32_t c = std::min(cb[l], left[l]);
+    const bool limited = left[l] < kUnlimitedEvents;
+    const int32_t c = limited ? std::min(cb[l], left[l]) : cb[l];
     cb[l] = c;
-    left[l] -= c;
+    left[l] -= limited ? c : 0;
   }
+}
+
+bool any_limited(int64_t lanes, const int32_t* __restrict__ left) {
+  int32_t lo = kUnlimitedEvents;
+  for (int64_t l = 0; l < lanes; ++l) lo = std::min(lo, left[l]);
+  return lo < kUnlimitedEvents;
 }
 
 void add_noise(int64_t n, const int32_t* __restrict__ cb, const float* __restrict__ w, float* __restrict__ inb) {
@@ -279,6 +289,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   int32_t* __restrict__ cb = cnt_buf.data();
   uint8_t* __restrict__ sb = spk_buf.data();
   uint8_t* __restrict__ hb = inp_buf.data();
+  const bool limited = any_limited(3 * n, events_left);  // the test's EM noise, or nothing to spend
   for (int64_t t = 0; t < n_steps; ++t) {
     const int32_t m = first_step + int32_t(t) + 1;
     const float t_ms = float(m) * dt;
@@ -288,7 +299,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     float* __restrict__ inb = ring + (int64_t(m) % n_slots) * width;
     // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs
     noise_counts(3 * n, kmax, hash32(uint32_t(m) * kGolden + step_seed), lane_key, thr, ub, cb);
-    spend_budget(3 * n, cb, events_left);
+    if (limited) spend_budget(3 * n, cb, events_left);
     add_noise(n, cb, noise_w, inb);
     add_noise(2 * n, cb + n, noise_w + n, inb + 2 * n);
     // 2c. decay, refractory bookkeeping and V (the deviation every driving force of this step uses)
