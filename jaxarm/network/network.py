@@ -20,7 +20,8 @@ State layout (every field may carry leading batch axes under ``vmap``):
 * ``step``: () int32 clock steps since the start of the run; the time is ``step * dt_ms``.
 * ``cells``: :class:`~jaxarm.network.cell.CellState`, (n_cells,) arrays for the 512 INTF6 cells (ids 0..511).
 * ``p``: :class:`~jaxarm.network.proprio.PState` of the 192 P generators (ids 512..703).
-* ``noise``: :class:`~jaxarm.network.noise.NoiseState` (seeds and the Poisson tables of the current rates).
+* ``noise``: :class:`~jaxarm.network.noise.NoiseState` (seeds, the Poisson tables of the current rates, per-lane event
+  budgets).
 * ``ring``: the synaptic input ring buffer (:mod:`jaxarm.network.synapses`).
 * ``wgain``: (n_syn,) float32 gain of every synapse on its AMPA/GABA base weight (1 at start). Per-post-cell layout:
   ``WiringLayout.view(state.wgain, "ES->EM")`` is the (n_post, in_degree) block of a pathway, matching
