@@ -136,3 +136,52 @@ def test_wiring_is_deterministic_and_key_dependent():
 def test_config_rejects_bad_values_naming_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         NetworkConfig(**{field: value})
+
+
+def test_wiring_from_edges_rebuilds_a_drawn_wiring_and_maps_per_edge_arrays(wiring):
+    # An edge list in any order (e.g. a network exported from the original NEURON model) becomes the same network:
+    # the drawn wiring's own edges, shuffled, give back every array; `order` carries per-edge values along.
+    from jaxarm.network.wiring import wiring_from_edges
+
+    config = NetworkConfig()
+    n = WiringLayout(config).n_syn
+    pre, post = np.asarray(wiring.pre[:n]), np.asarray(wiring.post[:n])
+    delay_ms = np.asarray(wiring.delay_steps[:n]) * config.dt_ms
+    perm = np.random.default_rng(0).permutation(n)
+    rebuilt, order = wiring_from_edges(config, pre[perm], post[perm], delay_ms[perm])
+    # per (post cell, pathway row) the presynaptic multiset and the delays are those of the original wiring
+    key = lambda w: np.lexsort((np.asarray(w.delay_steps), np.asarray(w.pre), np.asarray(w.post)))  # noqa: E731
+    for field in ("pre", "post", "delay_steps", "weight", "nmda", "target"):
+        np.testing.assert_array_equal(np.asarray(getattr(rebuilt, field))[key(rebuilt)],
+                                      np.asarray(getattr(wiring, field))[key(wiring)])
+    assert int(rebuilt.out_overflow) == 0
+    # a per-edge value (here: the drawn synapse each edge came from) lands on the synapse that edge became
+    source = perm[order]
+    np.testing.assert_array_equal(np.asarray(rebuilt.pre[:n]), pre[source])
+    np.testing.assert_array_equal(np.asarray(rebuilt.post[:n]), post[source])
+    np.testing.assert_array_equal(np.asarray(rebuilt.delay_steps[:n]), np.asarray(wiring.delay_steps)[source])
+    # in the drawn order, the rebuild is exact
+    same, order = wiring_from_edges(config, pre, post, delay_ms)
+    np.testing.assert_array_equal(order, np.arange(n))
+    for a, b in zip(jax.tree.leaves(same), jax.tree.leaves(wiring)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_wiring_from_edges_names_what_does_not_fit(wiring):
+    from jaxarm.network.wiring import wiring_from_edges
+
+    config = NetworkConfig()
+    n = WiringLayout(config).n_syn
+    pre, post = np.asarray(wiring.pre[:n]), np.asarray(wiring.post[:n])
+    delay = np.ones(n)
+    with pytest.raises(ValueError, match=r"pathway ES->ES: post cell 0 has 10 inputs, the in-degree is 11"):
+        wiring_from_edges(config, pre[1:], post[1:], delay[1:])
+    bad_post = post.copy()
+    bad_post[0] = 300                                           # an ES -> ES edge moved onto an EM cell
+    with pytest.raises(ValueError, match="in-degree"):
+        wiring_from_edges(config, pre, bad_post, delay)
+    iml_to_es = np.append(pre, 500), np.append(post, 0)         # IML -> ES is not a pathway of the model
+    with pytest.raises(ValueError, match="IML -> ES is not a pathway"):
+        wiring_from_edges(config, *iml_to_es, np.ones(n + 1))
+    with pytest.raises(ValueError, match=r"pre ids must be in \[0, 704\)"):
+        wiring_from_edges(config, np.append(pre, 704), np.append(post, 0), np.ones(n + 1))

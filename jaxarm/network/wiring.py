@@ -244,10 +244,14 @@ def make_wiring(config: NetworkConfig, key) -> Wiring:
 
 @partial(jax.jit, static_argnums=0)
 def _make_wiring_jit(config: NetworkConfig, key) -> Wiring:
+    pre, delay_ms = _draw_synapses(config, key)
+    return _build_wiring(config, pre, delay_ms)
+
+
+def _draw_synapses(config: NetworkConfig, key):
+    """(n_syn,) presynaptic global ids and delays (ms) in the layout's synapse order, drawn from ``key``."""
     layout = WiringLayout(config)
     pops = layout.pops
-    dt = config.dt_ms
-    pres, posts, delays, weights, nmdas, targets = [], [], [], [], [], []
     # Two draws and one top_k for everything (threefry and sorts compile slowly on CPU, so not one per pathway):
     # every (pathway, post cell) row gets uniform keys for its candidate partners and keeps the k largest, which is
     # k distinct partners drawn uniformly; every synapse gets a uniform delay.
@@ -265,23 +269,35 @@ def _make_wiring_jit(config: NetworkConfig, key) -> Wiring:
     keys = jnp.where(valid, jax.random.uniform(k_pre, valid.shape), -1.0)
     chosen = jax.lax.top_k(keys, k_max)[1]
     delay_u = jax.random.uniform(k_delay, (layout.n_syn,))
+    pres, delays = [], []
     for index, (pw, pool) in enumerate(zip(PATHWAYS, pools)):
         n_post, k = config.size(pw.post), layout.in_degree[pw.name]
         local = chosen[rows[index]:rows[index + 1], :k]
         if pool < config.size(pw.pre):  # self excluded: candidate c >= own index stands for c + 1
             local = local + (local >= jnp.arange(n_post)[:, None])
-        pre = (local + pops.start[pw.pre]).astype(jnp.int32).reshape(-1)
-        post = jnp.asarray(np.repeat(np.arange(n_post, dtype=np.int32) + pops.start[pw.post], k))
+        pres.append((local + pops.start[pw.pre]).astype(jnp.int32).reshape(-1))
         lo, hi = pw.delay_ms
         off = layout.offset[pw.name]
-        delay_ms = lo + (hi - lo) * delay_u[off:off + n_post * k]
-        delay = jnp.maximum(jnp.round(delay_ms / dt), 1).astype(jnp.int32)
-        pres.append(pre)
+        delays.append(lo + (hi - lo) * delay_u[off:off + n_post * k])
+    return jnp.concatenate(pres), jnp.concatenate(delays)
+
+
+def _build_wiring(config: NetworkConfig, pre_syn, delay_ms) -> Wiring:
+    """The Wiring of given synapses: ``pre_syn`` (n_syn,) presynaptic global ids and ``delay_ms`` (n_syn,) in the
+    layout's order (pathway by pathway, post-cell major); posts, weights and channels follow from the layout."""
+    layout = WiringLayout(config)
+    pops = layout.pops
+    dt = config.dt_ms
+    posts, weights, nmdas, targets = [], [], [], []
+    for pw in PATHWAYS:
+        n_post, k = config.size(pw.post), layout.in_degree[pw.name]
+        post = jnp.asarray(np.repeat(np.arange(n_post, dtype=np.int32) + pops.start[pw.post], k))
         posts.append(post)
-        delays.append(delay)
         weights.append(jnp.full((n_post * k,), pw.weight, jnp.float32))
         nmdas.append(jnp.full((n_post * k,), pw.nmda_weight, jnp.float32))
         targets.append(post + pw.channel * config.n_cells)
+    delays = [jnp.maximum(jnp.round(jnp.asarray(delay_ms, jnp.float32) / dt), 1).astype(jnp.int32)]
+    pres = [jnp.asarray(pre_syn, jnp.int32)]
     n_all = config.n_all
     # the dummy synapse n_syn: zero weight onto cell 0, presynaptic id n_all
     pre = jnp.concatenate(pres + [jnp.array([n_all], jnp.int32)])
@@ -307,6 +323,51 @@ def _make_wiring_jit(config: NetworkConfig, key) -> Wiring:
                                   in_plastic_pre=in_pre.astype(jnp.int32)))
     return Wiring(pre=pre, post=post, delay_steps=delay, weight=weight, nmda=nmda, target=target, packed=packed,
                   groups=tuple(groups), out_overflow=overflow.astype(jnp.int32))
+
+
+def wiring_from_edges(config: NetworkConfig, pre, post, delay_ms) -> tuple[Wiring, np.ndarray]:
+    """A Wiring from an explicit edge list, e.g. a network built by the original NEURON model (experiments/
+    transplant.py). ``pre``, ``post``: (n_edges,) global ids (:mod:`jaxarm.network.populations` numbering, which is
+    the original's); ``delay_ms``: (n_edges,) delays, ms (rounded to the clock step, as drawn ones are). The edges
+    must be exactly this configuration's synapses: every (pathway, post cell) with the pathway's in-degree, P -> ES
+    included, and no edge of a pathway the model does not have.
+
+    Returns (wiring, order): ``order[s]`` is the edge index of synapse ``s``, so a per-edge array ``a`` (e.g. the
+    original's plastic gains) is ``a[order]`` in the wiring's synapse order. Raises ValueError naming the pathway
+    and cell that do not fit."""
+    layout = WiringLayout(config)
+    pops = layout.pops
+    pre, post = np.asarray(pre, np.int64), np.asarray(post, np.int64)
+    delay_ms = np.asarray(delay_ms, np.float64)
+    if not (pre.shape == post.shape == delay_ms.shape and pre.ndim == 1):
+        raise ValueError(f"pre, post, delay_ms must be 1-d arrays of one length, got {pre.shape}, {post.shape}, "
+                         f"{delay_ms.shape}")
+    for name, ids in (("pre", pre), ("post", post)):
+        if ids.size and (ids.min() < 0 or ids.max() >= config.n_all):
+            raise ValueError(f"{name} ids must be in [0, {config.n_all}), got [{ids.min()}, {ids.max()}]")
+    pop_names = np.asarray(POPULATIONS)
+    pop_of = pops.population_of()
+    index = {(pw.pre, pw.post): i for i, pw in enumerate(PATHWAYS)}
+    pathway = np.array([index.get((pop_names[a], pop_names[b]), -1) for a, b in zip(pop_of[pre], pop_of[post])],
+                       np.int64)
+    if np.any(pathway < 0):
+        bad = int(np.argmax(pathway < 0))
+        raise ValueError(f"edge {bad}: {pop_names[pop_of[pre[bad]]]} -> {pop_names[pop_of[post[bad]]]} is not a "
+                         "pathway of this network")
+    # our order: pathway, then post cell; edges of one row keep their given order (stable sort)
+    order = np.lexsort((post, pathway))
+    for i, pw in enumerate(PATHWAYS):
+        k = layout.in_degree[pw.name]
+        counts = np.bincount(post[pathway == i] - pops.start[pw.post], minlength=config.size(pw.post))
+        if np.any(counts != k):
+            cell = int(np.argmax(counts != k))
+            raise ValueError(f"pathway {pw.name}: post cell {pops.start[pw.post] + cell} has {counts[cell]} inputs, "
+                             f"the in-degree is {k}")
+    if order.size != layout.n_syn:
+        raise ValueError(f"{order.size} edges, this network has {layout.n_syn} synapses")
+    wiring = jax.jit(_build_wiring, static_argnums=0)(config, jnp.asarray(pre[order], jnp.int32),
+                                                      jnp.asarray(delay_ms[order], jnp.float32))
+    return wiring, order
 
 
 def _delivery_lists(pre, n_pre: int, capacity: int, n_syn: int):
