@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.config.network import NetworkConfig
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
@@ -77,9 +78,12 @@ def main(argv=None) -> int:
     ap.add_argument("--networks", type=int, default=10, help="train: trainings per wiring")
     ap.add_argument("--epochs", type=int, default=12)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--crossing", choices=("after_step", "per_event"), default="after_step",
+                    help="NetworkConfig.crossing (how a step that lifts a cell past Vblock is tested)")
     ap.add_argument("--json", type=Path, help="write the results here")
     args = ap.parse_args(argv)
-    cfg = LoopConfig(arm=args.arm, task=TaskConfig(target=args.target, epochs=args.epochs))
+    cfg = LoopConfig(arm=args.arm, task=TaskConfig(target=args.target, epochs=args.epochs),
+                     network=NetworkConfig(crossing=args.crossing))
     fns = make_train(cfg)
     mp = MetaParams.original()
     nets = [load_network(p, cfg.network) for p in args.networks_npz]
@@ -107,7 +111,7 @@ def main(argv=None) -> int:
     print(f"all: {total[0]}/{total[1]}")
     if args.json:
         args.json.write_text(json.dumps({"mode": args.mode, "arm": args.arm, "target": args.target,
-                                         "epochs": args.epochs, "seed": args.seed, "results": results}, indent=1))
+                                         "epochs": args.epochs, "seed": args.seed, "crossing": args.crossing, "results": results}, indent=1))
     return 0
 
 

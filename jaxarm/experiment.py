@@ -47,7 +47,7 @@ def _compiled(config: LoopConfig):
 
 
 #: NetworkConfig fields `jaxarm train` sets from its options (--dt-ms, --threshold-test); recorded in the run's meta.
-NETWORK_OPTIONS = ("dt_ms", "threshold_test")
+NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing")
 
 
 def network_config(source) -> NetworkConfig:
@@ -287,6 +287,12 @@ def _add_common(ap):
     ap.add_argument("--no-progress", action="store_true")
 
 
+CROSSINGS = ("after_step", "per_event")
+CROSSING_HELP = ("a step whose input lifts a cell from below threshold past Vblock: after_step (default; blocked, "
+                 "fires once it decays back) or per_event (fires, as the event-driven original, which tests after "
+                 "every event; NetworkConfig.crossing)")
+
+
 def _add_test_noise_option(ap, default="unlimited"):
     ap.add_argument("--test-em-noise-events", choices=TEST_EM_NOISE_EVENTS, default=default,
                     help="EM test noise: unlimited (default) or netstim (each EM cell's noise stops after "
@@ -324,6 +330,7 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threshold-test", choices=("every_step", "on_event"), default=None,
                     help="when a cell's threshold is tested: every_step (default) or on_event (only in steps with "
                          "input, as the event-driven original; NetworkConfig.threshold_test)")
+    ap.add_argument("--crossing", choices=CROSSINGS, default=None, help=CROSSING_HELP)
     args = ap.parse_args(argv)
     _check(ap, args)
     try:
@@ -382,6 +389,8 @@ def test_main(argv: list[str] | None = None) -> int:
                          "em_noise_rate_test_hz=150); the trained weights are kept")
     ap.add_argument("--threshold-test", choices=("every_step", "on_event"), default=None,
                     help="test with this threshold test (default: as trained); the trained weights are kept")
+    ap.add_argument("--crossing", choices=CROSSINGS, default=None,
+                    help="test with this crossing rule (default: as trained); the trained weights are kept")
     _add_test_noise_option(ap)
     args = ap.parse_args(argv)
     try:
@@ -404,7 +413,8 @@ def test_main(argv: list[str] | None = None) -> int:
     task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
                       test_duration_s=args.test_s or 1.0, test_em_noise_events=args.test_em_noise_events)
     # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
-    network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {}))
+    network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
+                             | ({"crossing": args.crossing} if args.crossing else {}))
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
     out = args.out or args.src / "test"
     if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)

@@ -41,11 +41,12 @@ def assert_states_close(a, b):
 
 
 @needs_native
-@pytest.mark.parametrize("summation,threshold_test", [("sequential", "every_step"), ("linear", "every_step"),
-                                                      ("sequential", "on_event")])
-def test_batched_run_matches_xla(summation, threshold_test):
+@pytest.mark.parametrize("summation,threshold_test,crossing", [
+    ("sequential", "every_step", "after_step"), ("linear", "every_step", "after_step"),
+    ("sequential", "on_event", "after_step"), ("sequential", "every_step", "per_event")])
+def test_batched_run_matches_xla(summation, threshold_test, crossing):
     """8 networks, own wiring each, 250 ms from rest (the start-of-run P volley included)."""
-    nx, nn = pair(event_summation=summation, threshold_test=threshold_test)
+    nx, nn = pair(event_summation=summation, threshold_test=threshold_test, crossing=crossing)
     keys = jax.random.split(jax.random.key(3), 8)
     wirings = jax.vmap(nx.make_wiring)(keys)
     s0 = jax.vmap(lambda k: start(nx, k))(jax.random.split(jax.random.key(4), 8))

@@ -130,6 +130,31 @@ def test_on_event_threshold_test_waits_for_the_next_input():
         NetworkConfig(threshold_test="sometimes")
 
 
+def test_per_event_crossing_fires_a_volley_that_jumps_past_vblock():
+    """22 simultaneous P inputs (4 mV each, one step) lift an ES cell from rest past Vblock (-25 mV). The original
+    tests after every event and fires at the one that crosses VTH; testing the step's sum once blocks it until it
+    decays back below Vblock ("after_step"); "per_event" fires it in the step of the volley, as the original."""
+    config = NetworkConfig(dt_ms=0.25)
+    const = _one_cell_constants(config, 0)   # an E cell: VTH -40, Vblock -25 mV
+    zero = jnp.zeros(1)
+    volley = C.event_load(jnp.full((1,), 4.0), C.E_AMPA) * 22     # the summed load of 22 events of 4 mV
+    s, after = C.cell_step(C.init_cells(1), volley, zero, zero, zero, const, sequential=True)
+    assert float(C.membrane_potential(s, const)[0]) > -25.0 and not bool(after[0])       # into block: no spike
+    _, per = C.cell_step(C.init_cells(1), volley, zero, zero, zero, const, sequential=True, per_event_crossing=True)
+    assert bool(per[0])
+    # a cell already above Vblock before the step stays blocked either way (the original's events find it blocked)
+    _, again = C.cell_step(s, jnp.array([0.5]), zero, zero, zero, const, sequential=True, per_event_crossing=True)
+    assert not bool(again[0])
+    # input that stays within (VTH, Vblock] fires the same way under both rules; below VTH neither fires
+    small = jnp.array([30.0])
+    for rule in (False, True):
+        assert bool(C.cell_step(C.init_cells(1), small, zero, zero, zero, const, per_event_crossing=rule)[1][0])
+        assert not bool(C.cell_step(C.init_cells(1), jnp.array([5.0]), zero, zero, zero, const,
+                                    per_event_crossing=rule)[1][0])
+    with pytest.raises(ConfigError, match="crossing"):
+        NetworkConfig(crossing="sometimes")
+
+
 def test_refractory_periods_in_steps():
     for dt, expected in [(0.1, (50, 25, 25)), (0.5, (10, 5, 5)), (1.0, (5, 3, 3))]:
         const = C.cell_constants(NetworkConfig(dt_ms=dt))

@@ -72,6 +72,13 @@ class NetworkConfig:
             least one event (synaptic or noise, excitatory or inhibitory) arrives at the cell, as the event-driven
             original tests it (intf6.mod: on every arriving event; the end of the refractory period does not test),
             so a cell held above threshold waits for its next input.
+        crossing: what a step whose input lifts a cell from below threshold to above Vblock (depolarisation block)
+            does. "after_step" (default): the step's summed input is tested once, so the cell is blocked and fires
+            only when it decays back below Vblock; "per_event": it fires, as in the event-driven original, which tests
+            the threshold after every event and so fires at the event that crossed it (intf6.mod). The difference
+            shows in volleys, e.g. the start-of-run volley: the 22 simultaneous P inputs of an ES cell lift it from
+            rest to about -17 mV, past Vblock (-25 mV); the original fires every ES cell at t = 2 ms, "after_step"
+            spreads those spikes over 2-10 ms. One event per step is tested the same way by both.
         plasticity_bookkeeping: keep each cell's last spike time and tag plastic synapses on postsynaptic spikes
             (``pdope``), for reward-modulated STDP.
         kernel: what runs a chunk of steps. "native": one compiled C++ call per chunk for the whole batch
@@ -101,6 +108,7 @@ class NetworkConfig:
     noise_max_rate_hz: float = 250.0
     event_summation: str = "sequential"
     threshold_test: str = "every_step"
+    crossing: str = "after_step"
     plasticity_bookkeeping: bool = True
     kernel: str = "auto"
     native_threads: int = field(default_factory=lambda: int(os.environ.get("JAXARM_NATIVE_THREADS", "1")))
@@ -148,6 +156,7 @@ class NetworkConfig:
         check_range(self, "noise_max_rate_hz", 0.0, 5000.0, lo_open=True)
         check_choice(self, "event_summation", ("sequential", "linear"))
         check_choice(self, "threshold_test", ("every_step", "on_event"))
+        check_choice(self, "crossing", ("after_step", "per_event"))
         if not isinstance(self.plasticity_bookkeeping, bool):
             raise ConfigError(f"NetworkConfig.plasticity_bookkeeping = {self.plasticity_bookkeeping!r}: "
                               "must be True or False")

@@ -140,13 +140,16 @@ def mg_block(v_abs):
 
 
 def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants,
-              sequential: bool = False, on_event: bool = False):
+              sequential: bool = False, on_event: bool = False, per_event_crossing: bool = False):
     """Advance every cell by one step and apply this step's input (summed weights, mV, each (n_cells,)).
 
     ``sequential``: the AMPA and GABA inputs are summed loads (:func:`event_load`) rather than summed weights, and
     several events of one channel in a step saturate toward the reversal as the original's one-by-one jumps do.
     With one event per step both forms are the same. ``on_event``: test the threshold only in cells that received
-    input in this step (``NetworkConfig.threshold_test = "on_event"``). Returns (new state, spiked (n_cells,) bool).
+    input in this step (``NetworkConfig.threshold_test = "on_event"``). ``per_event_crossing``
+    (``NetworkConfig.crossing = "per_event"``): a cell below threshold before this step's input and above Vblock after
+    it spikes, as the original, which tests after every event, would have at the event that crossed the threshold.
+    Returns (new state, spiked (n_cells,) bool).
     """
     ampa = s.ampa * c.decay_ampa
     nmda = s.nmda * c.decay_nmda
@@ -177,7 +180,12 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
     crossed = (since >= c.n_refractory) & (vm > c.vth + excess)
     if on_event:
         crossed = crossed & ((ampa_in != 0.0) | (nmda_in != 0.0) | (gaba_prox_in != 0.0) | (gaba_dist_in != 0.0))
-    spiked = crossed & (vm <= c.vblock)
+    below_block = vm <= c.vblock
+    if per_event_crossing:
+        # the deviation v before this step's jumps (clamped as the driving force sees it) was below threshold: the
+        # input crossed the window (VTHC, Vblock] on the way up, where one of its events would have fired the cell
+        below_block = below_block | (c.rmp + v <= c.vth + excess)
+    spiked = crossed & below_block
     ahp = jnp.where(spiked, ahp - c.ahpwt, ahp)
     excess = jnp.where(spiked, c.post_spike_excess, excess)
     since = jnp.where(spiked, 0, since)

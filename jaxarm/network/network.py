@@ -232,7 +232,7 @@ class Network:
         cells, net_spiked = cell_mod.cell_step(
             state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
             self.cell_constants, sequential=c.event_summation == "sequential",
-            on_event=c.threshold_test == "on_event")
+            on_event=c.threshold_test == "on_event", per_event_crossing=c.crossing == "per_event")
         p, p_spiked = proprio_mod.p_step(state.p, m)
         spiked = jnp.concatenate([net_spiked, p_spiked])
         state = state._replace(

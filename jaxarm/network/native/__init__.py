@@ -174,7 +174,7 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
     call = jax.ffi.ffi_call(TARGET, out_types, vmap_method="expand_dims", input_output_aliases=ALIASES)
     outs = call(*args, n_steps=np.int64(n_steps), n_slots=np.int64(net.n_slots),
                 p_syn_offset=np.int64(ps.start), sequential=np.int64(c.event_summation == "sequential"),
-                on_event=np.int64(c.threshold_test == "on_event"),
+                on_event=np.int64(c.threshold_test == "on_event"), per_event=np.int64(c.crossing == "per_event"),
                 dt_ms=np.float32(c.dt_ms), excitatory=np.asarray(lay.group_is_excitatory, np.int64),
                 n_threads=np.int64(c.native_threads))
     (step, ampa, nmda, gprox, gdist, ahp, excess, since, p_next, ring, pdope, last, prev, count, events_left,

@@ -74,7 +74,7 @@ struct View {  // one input or output: base pointer, per-network element count, 
 };
 
 struct Attrs {
-  int64_t n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, exc[8];
+  int64_t n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, per_event, exc[8];
   float dt_ms;
 };
 
@@ -158,6 +158,20 @@ void threshold(int64_t n, const float* __restrict__ a, const float* __restrict__
   for (int64_t i = 0; i < n; ++i) {
     const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], kVmMin), kVmMax);
     out[i] = (since[i] >= n_ref[i]) & (vm > vth[i] + excess[i]) & (vm <= vblock[i]);
+  }
+}
+
+// NetworkConfig.crossing = "per_event": a cell that was below threshold before this step's input (v: its deviation
+// then) and is above Vblock after it crossed the threshold at one of the step's events, where the original fires it
+void crossed_per_event(int64_t n, const float* __restrict__ a, const float* __restrict__ b,
+                       const float* __restrict__ c, const float* __restrict__ d, const float* __restrict__ e,
+                       const float* __restrict__ rmp, const float* __restrict__ v,
+                       const int32_t* __restrict__ since, const int32_t* __restrict__ n_ref,
+                       const float* __restrict__ vth, const float* __restrict__ excess,
+                       const float* __restrict__ vblock, uint8_t* __restrict__ out) {
+  for (int64_t i = 0; i < n; ++i) {
+    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], kVmMin), kVmMax);
+    out[i] |= (since[i] >= n_ref[i]) & (vm > vblock[i]) & (rmp[i] + v[i] <= vth[i] + excess[i]);
   }
 }
 
@@ -342,6 +356,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     }
     // 2e. threshold test (vectorised), then the spikes' own updates (rare)
     threshold(n, ampa, nmda, gprox, gdist, ahp, rmp, since, n_ref, vth, excess, vblock, sb);
+    if (a.per_event) crossed_per_event(n, ampa, nmda, gprox, gdist, ahp, rmp, vb, since, n_ref, vth, excess, vblock, sb);
     if (a.on_event)   // the original tests only on an arriving event
       for (int64_t i = 0; i < n; ++i) sb[i] &= hb[i];
     fired.clear();
@@ -420,7 +435,7 @@ View view_of(const ffi::AnyBuffer& b, int base_rank, int batch_rank) {
 }
 
 ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n_steps, int64_t n_slots,
-                     int64_t p_syn_offset, int64_t sequential, int64_t on_event, float dt_ms,
+                     int64_t p_syn_offset, int64_t sequential, int64_t on_event, int64_t per_event, float dt_ms,
                      ffi::Span<const int64_t> excitatory,
                      int64_t n_threads) {
   const int64_t n_groups = int64_t(excitatory.size());
@@ -449,7 +464,7 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
     if (r.has_error()) return r.error();
     out[k] = view_of(**r, kBaseRankOut[k], batch_rank);
   }
-  Attrs a{n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, {0}, dt_ms};
+  Attrs a{n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, per_event, {0}, dt_ms};
   for (int64_t g = 0; g < n_groups; ++g) a.exc[g] = excitatory[g];
   int64_t total = 1;
   for (int64_t b : batch) total *= b;
@@ -488,6 +503,7 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
                                   .Attr<int64_t>("p_syn_offset")
                                   .Attr<int64_t>("sequential")
                                   .Attr<int64_t>("on_event")
+                                  .Attr<int64_t>("per_event")
                                   .Attr<float>("dt_ms")
                                   .Attr<ffi::Span<const int64_t>>("excitatory")
                                   .Attr<int64_t>("n_threads"));
