@@ -379,6 +379,12 @@ def _parse_overrides(items: list[str]) -> dict[str, float]:
     return out
 
 
+def fresh_noise(trained: Trained, j: int) -> Trained:
+    """The same trained networks with fresh background-noise streams: each network's noise key folded with
+    ``1000 + j`` (the test re-uses the training streams otherwise, as the original does)."""
+    return trained._replace(noise_key=jax.vmap(lambda k: jax.random.fold_in(k, 1000 + j))(trained.noise_key))
+
+
 def test_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="jaxarm test", description="Re-test networks trained by `jaxarm train`.")
     ap.add_argument("--from", dest="src", type=Path, required=True, help="a `jaxarm train` output folder")
@@ -391,6 +397,10 @@ def test_main(argv: list[str] | None = None) -> int:
                     help="test with this threshold test (default: as trained); the trained weights are kept")
     ap.add_argument("--crossing", choices=CROSSINGS, default=None,
                     help="test with this crossing rule (default: as trained); the trained weights are kept")
+    ap.add_argument("--fresh-noise", type=int, default=None, metavar="J",
+                    help="test with fresh background-noise streams (each network's noise key folded with J >= 0) "
+                         "instead of the streams it trained with, which the test re-uses by default as the original "
+                         "re-seeds its noise identically at every run")
     _add_test_noise_option(ap)
     args = ap.parse_args(argv)
     try:
@@ -428,6 +438,11 @@ def test_main(argv: list[str] | None = None) -> int:
         (carry, history), _ = ckpt.restore((init, run.empty_history(init)))
     if overrides:   # after the restore: the checkpoint was written with the trained metaparameters
         run.mp = run.mp.replace(**{k: jnp.full_like(getattr(run.mp, k), v) for k, v in overrides.items()})
-    res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, 0.0, 0)
+    trained, naive = carry.trained, run.naive()
+    if args.fresh_noise is not None:
+        if args.fresh_noise < 0:
+            ap.error(f"--fresh-noise = {args.fresh_noise}: must be >= 0")
+        trained, naive = (fresh_noise(t, args.fresh_noise) for t in (trained, naive))
+    res = write_outputs(run, run.test(trained), run.test(naive), history, 0.0, 0)
     print(f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
     return 0

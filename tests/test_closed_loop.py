@@ -281,3 +281,17 @@ def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
                  "--out", str(tmp_path / "t2")]) == 0
     other = json.loads((tmp_path / "t2" / "results.json").read_text())
     assert other["config"]["loop"]["network"]["threshold_test"] == "every_step"
+    # --crossing is recorded like the other network options; --fresh-noise re-tests with other noise streams
+    assert main(["test", "--from", str(out), "--test-s", "0.2", "--crossing", "per_event",
+                 "--out", str(tmp_path / "t3")]) == 0
+    assert json.loads((tmp_path / "t3" / "results.json").read_text())["config"]["loop"]["network"]["crossing"] == \
+        "per_event"
+    paths = []
+    for j in (0, 0, 1):
+        assert main(["test", "--from", str(out), "--test-s", "0.2", "--fresh-noise", str(j),
+                     "--out", str(tmp_path / f"f{len(paths)}")]) == 0
+        paths.append(json.loads((tmp_path / f"f{len(paths)}" / "results.json").read_text())["networks"][0])
+    assert paths[0] == paths[1]                                  # same J, same streams
+    assert paths[0]["min_distance_m"] != res["networks"][0]["min_distance_m"] != paths[2]["min_distance_m"]
+    with pytest.raises(SystemExit):
+        main(["test", "--from", str(out), "--fresh-noise", "-1", "--out", str(tmp_path / "bad")])
