@@ -236,3 +236,104 @@ def original_history_percentiles(history) -> list[tuple[int, list[tuple[float, f
             cols.append((_percentile_of(np.round(ours, 2 if j < n_rates else 3), x), float(p10), float(p90)))
         out.append((e + 1, cols))
     return out
+
+
+#: The original NEURON model run with many seeds (simple arm, authors' metaparameters, the full protocol): one JSON
+#: file per target, measured outside this repository (how: the file's ``measured`` entry; docs/results.md).
+ORIGINAL_SEEDS_DIR = Path(__file__).parent / "data"
+#: The test times (ms) at which the seed runs' hand–target distances are compared.
+COMPARISON_TIMES_MS = (200, 400, 600, 800, 1000)
+
+
+def original_seed_runs(target: str = "left") -> dict:
+    """The original NEURON model's runs with many seeds on ``target`` (simple arm, authors' metaparameters, 12 x 30 s
+    of training and the 1 s test): ``{"target", "measured": how, "runs": [{"k", "inputseed", "dvseed", "success",
+    "min_distance_cm", "final_distance_cm", "final_q_rad", "test_rates_hz", "distance_cm": the test's hand–target
+    distance every 10 ms from 0 to 1000 ms, and where measured "fresh_noise_min_distance_cm": the same trained
+    network's closest approach in re-tests with other noise streams}, ...]}``. ValueError for a target without runs."""
+    path = ORIGINAL_SEEDS_DIR / f"original_seeds_{target}.json"
+    if not path.exists():
+        known = sorted(p.stem.removeprefix("original_seeds_") for p in ORIGINAL_SEEDS_DIR.glob("original_seeds_*.json"))
+        raise ValueError(f"target={target!r}: the original model was run with many seeds on {known} only")
+    return json.loads(path.read_text())
+
+
+def _summary_cm(x) -> dict:
+    x = np.asarray(x, float)
+    return {"median_cm": float(np.median(x)), "p10_cm": float(np.percentile(x, 10)),
+            "p90_cm": float(np.percentile(x, 90))}
+
+
+def _count(success) -> dict:
+    """k of n with the exact (Clopper–Pearson) 95 % interval of the rate."""
+    from scipy import stats
+
+    success = np.asarray(success, bool).reshape(-1)
+    k, n = int(success.sum()), int(success.size)
+    ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
+    return {"k": k, "n": n, "rate": k / n, "ci95": [float(ci.low), float(ci.high)]}
+
+
+def seed_distribution_comparison(folder: Path, original: dict | None = None, fresh_folders=(), goal: int = 26,
+                                 radius_cm: float = 4.0) -> dict:
+    """Our networks beside the original NEURON model's, both trained with the authors' metaparameters over many
+    seeds and tested the same way (the test re-uses each network's training noise streams).
+
+    * ``success``: counts with exact 95 % intervals and Fisher's exact test between the two;
+    * ``closest``, ``final``, ``distance_at_ms`` (:data:`COMPARISON_TIMES_MS`): median and 10–90 % range, cm, and
+      the two-sided Mann–Whitney U test (do one model's distances tend to be larger?);
+    * ``goal``: the probability that ``goal`` or more of N networks of the original would reach, at its measured
+      rate and at the upper end of its interval (how plausible such a count is for the model as it ran);
+    * ``fresh``: the trained networks re-tested with other noise streams: the original's from the reference data,
+      ours from ``fresh_folders`` (``jaxarm test --from FOLDER --fresh-noise J`` outputs; pooled), each as a count
+      of tests and the mean per-network rate.
+
+    ``folder``: a ``jaxarm train`` output on the simple arm; ``original``: :func:`original_seed_runs` of its target
+    (read by default)."""
+    from scipy import stats
+
+    res = json.loads((folder / "results.json").read_text())
+    if res["config"]["arm"] != "simple":
+        raise ValueError(f"{folder}: arm={res['config']['arm']!r}; the original was run on the simple arm")
+    original = original_seed_runs(res["target"]) if original is None else original
+    runs = original["runs"]
+    traj = np.load(folder / "trajectories.npz")
+    t_ms = 1000.0 * np.asarray(traj["t"], float)
+    ours_cm = 100.0 * np.asarray(traj["distance"], float)                          # (networks, T)
+    orig_cm = np.asarray([r["distance_cm"] for r in runs], float)                 # (runs, 101): 0..1000 ms
+    orig_t = 10.0 * np.arange(orig_cm.shape[1])
+
+    def compare(ours, orig):
+        return {"ours": _summary_cm(ours), "original": _summary_cm(orig),
+                "mannwhitney_p": float(stats.mannwhitneyu(ours, orig, alternative="two-sided").pvalue)}
+
+    at = {}
+    for t_ref in COMPARISON_TIMES_MS:
+        i, j = int(np.argmin(np.abs(t_ms - t_ref))), int(np.argmin(np.abs(orig_t - t_ref)))
+        at[t_ref] = compare(ours_cm[:, i], orig_cm[:, j])
+    c_ours = _count([n["success"] for n in res["networks"]])
+    c_orig = _count([r["success"] for r in runs])
+    table = [[c_ours["k"], c_ours["n"] - c_ours["k"]], [c_orig["k"], c_orig["n"] - c_orig["k"]]]
+    fresh = {}
+    with_fresh = [r for r in runs if r.get("fresh_noise_min_distance_cm")]
+    if with_fresh:
+        per = [np.asarray(r["fresh_noise_min_distance_cm"], float) <= radius_cm for r in with_fresh]
+        fresh["original"] = _count(np.concatenate(per)) | {
+            "networks": len(per), "mean_network_rate": float(np.mean([p.mean() for p in per])),
+            "own_noise": _count([r["success"] for r in with_fresh])}
+    if fresh_folders:
+        per = np.asarray([[n["success"] for n in json.loads((Path(f) / "results.json").read_text())["networks"]]
+                          for f in fresh_folders], bool)                          # (folders, networks)
+        fresh["ours"] = _count(per) | {"networks": int(per.shape[1]), "tests_per_network": int(per.shape[0]),
+                                       "mean_network_rate": float(per.mean())}
+    return {
+        "folder": str(folder), "target": res["target"], "measured": original["measured"],
+        "success": {"ours": c_ours, "original": c_orig, "fisher_p": float(stats.fisher_exact(table).pvalue)},
+        "closest": compare(ours_cm.min(axis=1), orig_cm.min(axis=1)),
+        "final": compare(ours_cm[:, -1], orig_cm[:, -1]),
+        "distance_at_ms": at,
+        "goal": {"k": goal, "n": c_orig["n"],
+                 "p_at_original_rate": float(stats.binom.sf(goal - 1, c_orig["n"], c_orig["rate"])),
+                 "p_at_original_upper_ci": float(stats.binom.sf(goal - 1, c_orig["n"], c_orig["ci95"][1]))},
+        "fresh": fresh,
+    }

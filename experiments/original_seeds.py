@@ -1,0 +1,116 @@
+"""Our networks beside the original NEURON model's, both trained with the authors' metaparameters over 30 seeds.
+
+    jaxarm train --arm simple --target left --networks 30 --seed 0 --out runs/orig-left
+    for j in 1 2 3 4 5 6 7 8 9; do jaxarm test --from runs/orig-left --fresh-noise $j --out runs/orig-left-fresh/$j; done
+    python experiments/original_seeds.py runs/orig-left --fresh runs/orig-left-fresh/* --markdown \
+        --figure docs/figures/original_seeds_left.png
+
+The original model was run 30 times with different seeds (run k: inputseed 1235 + 17 k, dvseed 398115 + 1000 k),
+each the full protocol on the simple arm; its outcomes, test trajectories and fresh-noise re-tests are reference
+data in ``jaxarm/analysis/data/original_seeds_<target>.json`` (how they were measured: its ``measured`` entry and
+docs/results.md). Both models' tests re-use the training noise streams, as the original re-seeds its noise at every
+run; ``--fresh`` adds our networks re-tested with other streams (``jaxarm test --fresh-noise J``), beside the
+original's re-tests. Computed by :func:`jaxarm.analysis.paper.seed_distribution_comparison`.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from jaxarm.analysis.paper import original_seed_runs, seed_distribution_comparison
+
+
+def _pct(c: dict) -> str:
+    lo, hi = c["ci95"]
+    return f"{c['k']}/{c['n']} ({100 * c['rate']:.0f} %, 95 % CI {100 * lo:.0f}–{100 * hi:.0f} %)"
+
+
+def _range(s: dict) -> str:
+    return f"{s['median_cm']:.1f} ({s['p10_cm']:.1f}–{s['p90_cm']:.1f})"
+
+
+def markdown(c: dict) -> str:
+    s = c["success"]
+    lines = [f"{c['target']} target, simple arm, authors' metaparameters ({c['folder']} beside the original's runs)", "",
+             "| | original NEURON model | jaxarm | p |", "|---|---|---|---|",
+             f"| networks reaching, test with the training noise | {_pct(s['original'])} | {_pct(s['ours'])} | "
+             f"{s['fisher_p']:.2f} (Fisher) |"]
+    for key, label in (("closest", "closest approach, median (10–90 %), cm"), ("final", "final distance, cm")):
+        r = c[key]
+        lines.append(f"| {label} | {_range(r['original'])} | {_range(r['ours'])} | {r['mannwhitney_p']:.2f} (MW) |")
+    for t, r in c["distance_at_ms"].items():
+        lines.append(f"| distance at {t} ms, cm | {_range(r['original'])} | {_range(r['ours'])} | "
+                     f"{r['mannwhitney_p']:.2f} (MW) |")
+    f = c["fresh"]
+    if f:
+        orig, ours = f.get("original"), f.get("ours")
+        lines.append("| re-tested with fresh noise: tests reaching | "
+                     + (f"{_pct(orig)}, {orig['networks']} networks × {orig['n'] // orig['networks']}" if orig else "–")
+                     + " | " + (f"{_pct(ours)}, {ours['networks']} networks × {ours['tests_per_network']}"
+                                if ours else "–") + " | |")
+        if orig:
+            lines.append(f"| the same {orig['networks']} networks, test with the training noise | "
+                         f"{_pct(orig['own_noise'])} | | |")
+    g = c["goal"]
+    lines += ["", f"{g['k']} or more of {g['n']} at the original's rate: probability {g['p_at_original_rate']:.3f} "
+                  f"(at the upper end of its interval: {g['p_at_original_upper_ci']:.2f})."]
+    return "\n".join(lines)
+
+
+def figure(folder: Path, c: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = original_seed_runs(c["target"])["runs"]
+    traj = np.load(folder / "trajectories.npz")
+    t_ms = 1000.0 * np.asarray(traj["t"], float)
+    ours = 100.0 * np.asarray(traj["distance"], float)
+    orig = np.asarray([r["distance_cm"] for r in runs], float)
+    t_orig = 10.0 * np.arange(orig.shape[1])
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    for d, t, colour, label in ((orig, t_orig, "C3", "original NEURON model"), (ours, t_ms, "C0", "jaxarm")):
+        a.fill_between(t, np.percentile(d, 10, axis=0), np.percentile(d, 90, axis=0), color=colour, alpha=0.15)
+        a.plot(t, np.median(d, axis=0), color=colour, lw=2, label=f"{label}: median, 10–90 % ({len(d)} networks)")
+        closest = np.sort(d.min(axis=1))
+        b.step(closest, np.arange(1, len(closest) + 1), where="post", color=colour,
+               label=f"{label}: {int(np.sum(closest <= 4.0))}/{len(closest)} within 4 cm")
+    for ax in (a, b):
+        ax.axhline(4.0, color="k", ls="--", lw=0.8) if ax is a else ax.axvline(4.0, color="k", ls="--", lw=0.8)
+    a.set(xlabel="test time, ms", ylabel="hand–target distance, cm", xlim=(0, 1000), ylim=(0, None))
+    b.set(xlabel="closest approach in the test, cm", ylabel="networks (cumulative)", xlim=(0, None))
+    a.legend(fontsize=7, loc="upper right")
+    b.legend(fontsize=7, loc="lower right")
+    fig.suptitle(f"Simple arm, {c['target']} target, authors' metaparameters, 30 seeds each", fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("run", type=Path, help="jaxarm train output folder (simple arm)")
+    ap.add_argument("--fresh", type=Path, nargs="*", default=[],
+                    help="jaxarm test --fresh-noise outputs of the same networks (pooled)")
+    ap.add_argument("--markdown", action="store_true", help="print a markdown table")
+    ap.add_argument("--figure", type=Path, help="write the figure here (PNG)")
+    ap.add_argument("--json", type=Path, help="write the comparison as JSON here")
+    args = ap.parse_args(argv)
+    try:
+        c = seed_distribution_comparison(args.run, fresh_folders=args.fresh)
+    except (FileNotFoundError, ValueError) as e:
+        raise SystemExit(str(e)) from None
+    if args.json:
+        args.json.write_text(json.dumps(c, indent=1) + "\n")
+    print(markdown(c) if args.markdown else json.dumps(c))
+    if args.figure:
+        figure(args.run, c, args.figure)
+
+
+if __name__ == "__main__":
+    main()
