@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm.analysis.paper import original_seed_runs, seed_distribution_comparison
+from jaxarm.analysis.paper import (EPOCH_COLUMNS, original_epoch_comparison, original_seed_runs,
+                                   seed_distribution_comparison)
 
 
 def _pct(c: dict) -> str:
@@ -57,6 +58,24 @@ def markdown(c: dict) -> str:
     g = c["goal"]
     lines += ["", f"{g['k']} or more of {g['n']} at the original's rate: probability {g['p_at_original_rate']:.3f} "
                   f"(at the upper end of its interval: {g['p_at_original_upper_ci']:.2f})."]
+    return "\n".join(lines)
+
+
+def epoch_markdown(rows: list[dict], epochs=(1, 2, 4, 8, 12)) -> str:
+    """Median (10–90 %) per epoch: the original's runs with per-epoch records / ours."""
+    n = (rows[0]["rewards"]["original"]["n"], rows[0]["rewards"]["ours"]["n"])
+    lines = [f"Training epoch by epoch, original ({n[0]} runs) / jaxarm ({n[1]} networks), median (10–90 %)", "",
+             "| epoch | " + " | ".join(EPOCH_COLUMNS) + " |", "|---|" + "---|" * len(EPOCH_COLUMNS)]
+    for r in rows:
+        if r["epoch"] not in epochs:
+            continue
+        cells = []
+        for col in EPOCH_COLUMNS:
+            digits = 0 if col in ("rewards", "punishments") else (2 if col == "EM_hz" else 3)
+            o, u = r[col]["original"], r[col]["ours"]
+            cells.append(f"{o['median']:.{digits}f} / {u['median']:.{digits}f} "
+                         f"({o['p10']:.{digits}f}–{o['p90']:.{digits}f} / {u['p10']:.{digits}f}–{u['p90']:.{digits}f})")
+        lines.append(f"| {r['epoch']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -105,9 +124,18 @@ def main(argv=None) -> None:
         c = seed_distribution_comparison(args.run, fresh_folders=args.fresh)
     except (FileNotFoundError, ValueError) as e:
         raise SystemExit(str(e)) from None
+    epochs = None
+    if (args.run / "history.npz").exists():
+        try:
+            epochs = original_epoch_comparison(np.load(args.run / "history.npz"), original_seed_runs(c["target"]))
+        except ValueError:
+            epochs = None
+    if args.markdown:
+        print(markdown(c) + ("\n\n" + epoch_markdown(epochs) if epochs else ""))
+    else:
+        print(json.dumps(c | {"epochs": epochs}))
     if args.json:
-        args.json.write_text(json.dumps(c, indent=1) + "\n")
-    print(markdown(c) if args.markdown else json.dumps(c))
+        args.json.write_text(json.dumps(c | {"epochs": epochs}, indent=1) + "\n")
     if args.figure:
         figure(args.run, c, args.figure)
 

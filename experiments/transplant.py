@@ -80,10 +80,11 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--crossing", choices=("after_step", "per_event"), default="after_step",
                     help="NetworkConfig.crossing (how a step that lifts a cell past Vblock is tested)")
+    ap.add_argument("--dt-ms", type=float, default=NetworkConfig().dt_ms, help="network clock step, ms")
     ap.add_argument("--json", type=Path, help="write the results here")
     args = ap.parse_args(argv)
     cfg = LoopConfig(arm=args.arm, task=TaskConfig(target=args.target, epochs=args.epochs),
-                     network=NetworkConfig(crossing=args.crossing))
+                     network=NetworkConfig(crossing=args.crossing, dt_ms=args.dt_ms))
     fns = make_train(cfg)
     mp = MetaParams.original()
     nets = [load_network(p, cfg.network) for p in args.networks_npz]
@@ -111,7 +112,7 @@ def main(argv=None) -> int:
     print(f"all: {total[0]}/{total[1]}")
     if args.json:
         args.json.write_text(json.dumps({"mode": args.mode, "arm": args.arm, "target": args.target,
-                                         "epochs": args.epochs, "seed": args.seed, "crossing": args.crossing, "results": results}, indent=1))
+                                         "epochs": args.epochs, "seed": args.seed, "crossing": args.crossing, "dt_ms": args.dt_ms, "results": results}, indent=1))
     return 0
 
 

@@ -424,3 +424,27 @@ def test_seed_distribution_comparison_counts_and_tests(tmp_path):
     (folder / "results.json").write_text(json.dumps(res))
     with pytest.raises(ValueError, match="simple arm"):
         mod.seed_distribution_comparison(folder, original)
+
+
+def test_original_epoch_comparison_lines_up_epochs_and_columns():
+    from jaxarm.analysis import paper as mod
+
+    pathways = np.array(["ES->ES", "ES->IS", "ES->EM", "EM->EM", "EM->IM", "EM->ES", "IS->ES", "P->ES"])
+    pops = np.array(["ES", "IS", "ISL", "EM", "IM", "IML"])
+    n_ep, n_net = 3, 4
+    gains = np.ones((n_ep, n_net, len(pathways)))
+    gains[:, :, 2] = 1.0 + 0.1 * np.arange(1, n_ep + 1)[:, None]          # ES->EM grows 0.1 per epoch
+    history = {"rewards": np.full((n_ep, n_net), 10.0), "punishments": np.tile(np.arange(n_net, dtype=float), (n_ep, 1)),
+               "rates_hz": np.full((n_ep, n_net, 6), 2.0), "mean_wgain": gains, "populations": pops,
+               "pathways": pathways}
+    epoch = {"rewards": 5, "punishments": 7, "em_rate_hz_by_group": [1.0, 2.0, 3.0, 2.0],
+             "mean_wgain": dict.fromkeys(mod.EPOCH_GAINS, 1.0) | {"ES->EM": 1.5}}
+    original = {"runs": [{"epochs": [epoch] * 2}, {"epochs": None}, {"epochs": [epoch] * 2}]}
+    rows = mod.original_epoch_comparison(history, original)
+    assert [r["epoch"] for r in rows] == [1, 2]                            # the shorter of the two
+    assert rows[1]["ES->EM"]["ours"]["median"] == pytest.approx(1.2)
+    assert rows[0]["ES->EM"]["original"] == {"median": 1.5, "p10": 1.5, "p90": 1.5, "n": 2}
+    assert rows[0]["EM_hz"]["original"]["median"] == pytest.approx(2.0) and rows[0]["EM_hz"]["ours"]["median"] == 2.0
+    assert rows[0]["punishments"]["ours"]["median"] == pytest.approx(1.5) and rows[0]["rewards"]["original"]["n"] == 2
+    with pytest.raises(ValueError, match="per-epoch"):
+        mod.original_epoch_comparison(history, {"runs": [{"epochs": None}]})

@@ -337,3 +337,41 @@ def seed_distribution_comparison(folder: Path, original: dict | None = None, fre
                  "p_at_original_upper_ci": float(stats.binom.sf(goal - 1, c_orig["n"], c_orig["ci95"][1]))},
         "fresh": fresh,
     }
+
+
+#: Per-epoch quantities compared by :func:`original_epoch_comparison`: the critic's counts, the EM rate over the
+#: epoch (Hz) and the mean gain of these pathways at the epoch's end.
+EPOCH_GAINS = ("ES->EM", "ES->ES", "EM->EM", "ES->IS", "EM->IM", "EM->ES", "IS->ES")
+EPOCH_COLUMNS = ("rewards", "punishments", "EM_hz") + EPOCH_GAINS
+
+
+def original_epoch_comparison(history, original: dict) -> list[dict]:
+    """Training epoch by epoch, our networks beside the original's seed runs that recorded every epoch.
+
+    ``history``: a run's ``history.npz`` as a mapping (``rewards``, ``punishments``, ``rates_hz``, ``mean_wgain``
+    of shape (epochs, networks, ...), with ``populations`` and ``pathways``); ``original``: :func:`original_seed_runs`.
+    Returns one dict per epoch both have: ``{"epoch": 1-based, column: {"ours": summary, "original": summary}}`` for
+    :data:`EPOCH_COLUMNS`, each summary the median and 10th/90th percentiles over networks (no unit conversion:
+    counts, Hz, gains)."""
+    runs = [r for r in original["runs"] if r.get("epochs")]
+    if not runs:
+        raise ValueError("the original's runs carry no per-epoch records")
+    pops, pws = [str(p) for p in history["populations"]], [str(p) for p in history["pathways"]]
+    ours = {"rewards": np.asarray(history["rewards"], float), "punishments": np.asarray(history["punishments"], float),
+            "EM_hz": np.asarray(history["rates_hz"], float)[:, :, pops.index("EM")]}
+    for g in EPOCH_GAINS:
+        ours[g] = np.asarray(history["mean_wgain"], float)[:, :, pws.index(g)]
+    n_epochs = min(ours["rewards"].shape[0], min(len(r["epochs"]) for r in runs))
+
+    def orig(e, col):
+        rows = [r["epochs"][e] for r in runs]
+        if col == "EM_hz":
+            return np.array([np.mean(x["em_rate_hz_by_group"]) for x in rows])
+        return np.array([x[col] if col in x else x["mean_wgain"][col] for x in rows], float)
+
+    def summ(x):
+        return {"median": float(np.median(x)), "p10": float(np.percentile(x, 10)), "p90": float(np.percentile(x, 90)),
+                "n": int(np.size(x))}
+
+    return [{"epoch": e + 1} | {c: {"ours": summ(ours[c][e]), "original": summ(orig(e, c))} for c in EPOCH_COLUMNS}
+            for e in range(n_epochs)]
