@@ -65,7 +65,8 @@ def _summary(res, n_per_net):
     return {"success": success.tolist(), "closest_cm": np.round(closest, 3).tolist(),
             "success_count": int(success.sum()), "n": int(success.size),
             "closest_median_cm": float(np.median(closest)),
-            "test_rates_hz": np.round(np.asarray(res.rates_hz).mean(axis=0), 3).tolist()}
+            "test_rates_hz": np.round(np.asarray(res.rates_hz).mean(axis=0), 3).tolist(),
+            "final_q_rad_mean": np.round(np.asarray(res.q_rad)[:, -1].mean(axis=0), 4).tolist()}
 
 
 def main(argv=None) -> int:

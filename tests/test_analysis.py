@@ -448,3 +448,14 @@ def test_original_epoch_comparison_lines_up_epochs_and_columns():
     assert rows[0]["punishments"]["ours"]["median"] == pytest.approx(1.5) and rows[0]["rewards"]["original"]["n"] == 2
     with pytest.raises(ValueError, match="per-epoch"):
         mod.original_epoch_comparison(history, {"runs": [{"epochs": None}]})
+
+
+def test_original_bottom_runs_do_not_reach():
+    # the original's first 10 runs on the bottom target (docs/results.md): none enters the circle
+    from jaxarm.analysis import paper as mod
+
+    d = mod.original_seed_runs("bottom")
+    assert d["target"] == "bottom" and len(d["runs"]) == 10
+    assert not any(r["success"] for r in d["runs"])
+    assert all(min(r["distance_cm"]) > 4.0 and r["distance_cm"][0] == pytest.approx(15.12, abs=0.02)
+               for r in d["runs"])
