@@ -1,11 +1,15 @@
 """Our networks beside the original NEURON model's, both trained with the authors' metaparameters over many seeds.
 
     jaxarm train --arm simple --target left --networks 30 --seed 0 --out runs/orig-left
-    for j in 1 2 3 4 5 6 7 8 9; do jaxarm test --from runs/orig-left --fresh-noise $j --out runs/orig-left-fresh/$j; done
-    python experiments/original_seeds.py runs/orig-left --fresh runs/orig-left-fresh/* --markdown \
-        --figure docs/figures/original_seeds_left.png
+    jaxarm train --arm simple --target left --networks 30 --seed 30 --out runs/orig-left-s30
+    for j in 1 2 3 4 5 6 7 8 9; do
+        jaxarm test --from runs/orig-left --fresh-noise $j --out runs/orig-left-fresh/$j
+        jaxarm test --from runs/orig-left-s30 --fresh-noise $j --out runs/orig-left-s30-fresh/$j
+    done
+    python experiments/original_seeds.py runs/orig-left runs/orig-left-s30 \
+        --fresh runs/orig-left-fresh/* runs/orig-left-s30-fresh/* --markdown --figure docs/figures/original_seeds_left.png
 
-The original model was run 30 times with different seeds (run k: inputseed 1235 + 17 k, dvseed 398115 + 1000 k),
+The original model was run 60 times with different seeds (run k: inputseed 1235 + 17 k, dvseed 398115 + 1000 k),
 each the full protocol on the simple arm; its outcomes, test trajectories and fresh-noise re-tests are reference
 data in ``jaxarm/analysis/data/original_seeds_<target>.json`` (how they were measured: its ``measured`` entry and
 docs/results.md). Both models' tests re-use the training noise streams, as the original re-seeds its noise at every
@@ -55,10 +59,17 @@ def markdown(c: dict) -> str:
         if orig:
             lines.append(f"| the same {orig['networks']} networks, test with the training noise | "
                          f"{_pct(orig['own_noise'])} | | |")
+    b = c.get("blocks", {})
+    if len(b.get("original", [])) > 1 or len(b.get("ours", [])) > 1:
+        def blk(x):
+            return "; ".join(f"{e['own_noise']['k']}/{e['own_noise']['n']}"
+                             + (f" ({100 * e['fresh']['rate']:.0f} % fresh)" if e["fresh"] else "") for e in x)
+        lines.append(f"| per block of {c['goal']['n']} seeds: reaching (fresh-noise tests) | {blk(b['original'])} | "
+                     f"{blk(b['ours'])} | |")
     g = c["goal"]
     if g["k"] <= g["n"]:
-        lines += ["", f"{g['k']} or more of {g['n']} at the original's rate: probability {g['p_at_original_rate']:.3f} "
-                      f"(at the upper end of its interval: {g['p_at_original_upper_ci']:.2f})."]
+        lines += ["", f"{g['k']} or more of {g['n']} at the original's rate: probability {g['p_at_original_rate']:.2g} "
+                      f"(at the upper end of its interval: {g['p_at_original_upper_ci']:.2g})."]
     return "\n".join(lines)
 
 
@@ -80,16 +91,29 @@ def epoch_markdown(rows: list[dict], epochs=(1, 2, 4, 8, 12)) -> str:
     return "\n".join(lines)
 
 
-def figure(folder: Path, c: dict, path: Path) -> None:
+def pooled_history(folders) -> dict | None:
+    """The runs' ``history.npz`` joined along the network axis (None if any run has none)."""
+    paths = [Path(f) / "history.npz" for f in folders]
+    if not all(p.exists() for p in paths):
+        return None
+    hs = [np.load(p) for p in paths]
+    out = {}
+    for key in ("rewards", "punishments", "rates_hz", "mean_wgain"):
+        out[key] = np.concatenate([np.asarray(h[key]) for h in hs], axis=1)      # (epochs, networks, ...)
+    out["populations"], out["pathways"] = hs[0]["populations"], hs[0]["pathways"]
+    return out
+
+
+def figure(folders, c: dict, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     runs = original_seed_runs(c["target"])["runs"]
-    traj = np.load(folder / "trajectories.npz")
-    t_ms = 1000.0 * np.asarray(traj["t"], float)
-    ours = 100.0 * np.asarray(traj["distance"], float)
+    trajs = [np.load(Path(f) / "trajectories.npz") for f in folders]
+    t_ms = 1000.0 * np.asarray(trajs[0]["t"], float)
+    ours = 100.0 * np.concatenate([np.asarray(t["distance"], float) for t in trajs])
     orig = np.asarray([r["distance_cm"] for r in runs], float)
     t_orig = 10.0 * np.arange(orig.shape[1])
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
@@ -115,9 +139,11 @@ def figure(folder: Path, c: dict, path: Path) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("run", type=Path, help="jaxarm train output folder (simple arm)")
+    ap.add_argument("run", type=Path, nargs="+",
+                    help="jaxarm train output folder(s) (simple arm, one target; several are pooled, e.g. --seed 0 "
+                         "and --seed 30)")
     ap.add_argument("--fresh", type=Path, nargs="*", default=[],
-                    help="jaxarm test --fresh-noise outputs of the same networks (pooled)")
+                    help="jaxarm test --fresh-noise outputs of the runs' networks (pooled by network seed)")
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
     ap.add_argument("--figure", type=Path, help="write the figure here (PNG)")
     ap.add_argument("--json", type=Path, help="write the comparison as JSON here")
@@ -127,9 +153,10 @@ def main(argv=None) -> None:
     except (FileNotFoundError, ValueError) as e:
         raise SystemExit(str(e)) from None
     epochs = None
-    if (args.run / "history.npz").exists():
+    history = pooled_history(args.run)
+    if history is not None:
         try:
-            epochs = original_epoch_comparison(np.load(args.run / "history.npz"), original_seed_runs(c["target"]))
+            epochs = original_epoch_comparison(history, original_seed_runs(c["target"]))
         except ValueError:
             epochs = None
     if args.markdown:

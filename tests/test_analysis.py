@@ -407,7 +407,7 @@ def test_seed_distribution_comparison_counts_and_tests(tmp_path):
     original = {"measured": {"model": "synthetic"}, "runs": [
         {"success": bool(e <= 4), "distance_cm": line(np.array([e]))[0].tolist(),
          "fresh_noise_min_distance_cm": [e, e + 2.0]} for e in ends_orig]}
-    c = mod.seed_distribution_comparison(folder, original, fresh_folders=fresh, goal=6)
+    c = mod.seed_distribution_comparison(folder, original, fresh_folders=fresh, goal=6, goal_of=6)
     assert (c["success"]["ours"]["k"], c["success"]["original"]["k"]) == (2, 5)
     lo, hi = c["success"]["original"]["ci95"]
     assert lo < 5 / 6 < hi and 0 < c["success"]["fisher_p"] < 1
@@ -420,6 +420,21 @@ def test_seed_distribution_comparison_counts_and_tests(tmp_path):
     assert c["fresh"]["original"]["own_noise"]["k"] == 5
     assert (c["fresh"]["ours"]["k"], c["fresh"]["ours"]["n"], c["fresh"]["ours"]["tests_per_network"]) == (4, 12, 2)
     assert c["goal"]["p_at_original_rate"] == pytest.approx((5 / 6) ** 6)
+    # several folders pool their networks (seeds 0-29 and 30-59); the goal stays "k of goal_of"
+    pooled = mod.seed_distribution_comparison([folder, str(folder)], original, goal=6, goal_of=6)
+    assert (pooled["success"]["ours"]["k"], pooled["success"]["ours"]["n"]) == (4, 12)
+    assert pooled["closest"]["ours"]["median_cm"] == pytest.approx(5.5) and pooled["goal"]["n"] == 6
+    # blocks of goal_of seeds: the original's 6 runs are one block (5/6, fresh 8/12); ours one per folder
+    assert [(b["own_noise"]["k"], b["fresh"]["k"]) for b in c["blocks"]["original"]] == [(5, 8)]
+    assert [b["own_noise"]["k"] for b in pooled["blocks"]["ours"]] == [2, 2]
+    halves = mod.seed_distribution_comparison(folder, original, goal=2, goal_of=3)
+    assert [b["own_noise"]["k"] for b in halves["blocks"]["original"]] == [3, 2]     # runs 0-2, 3-5
+    other = tmp_path / "bottom"
+    other.mkdir()
+    (other / "results.json").write_text(json.dumps(res | {"target": "bottom"}))
+    np.savez(other / "trajectories.npz", t=t, distance=line(ends_ours) / 100.0)
+    with pytest.raises(ValueError, match="target="):
+        mod.seed_distribution_comparison([folder, other], original)
     res["config"]["arm"] = "musculoskeletal"
     (folder / "results.json").write_text(json.dumps(res))
     with pytest.raises(ValueError, match="simple arm"):

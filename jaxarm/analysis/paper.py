@@ -274,32 +274,40 @@ def _count(success) -> dict:
     return {"k": k, "n": n, "rate": k / n, "ci95": [float(ci.low), float(ci.high)]}
 
 
-def seed_distribution_comparison(folder: Path, original: dict | None = None, fresh_folders=(), goal: int = 26,
-                                 radius_cm: float = 4.0) -> dict:
+def seed_distribution_comparison(folder, original: dict | None = None, fresh_folders=(), goal: int = 26,
+                                 goal_of: int = 30, radius_cm: float = 4.0) -> dict:
     """Our networks beside the original NEURON model's, both trained with the authors' metaparameters over many
     seeds and tested the same way (the test re-uses each network's training noise streams).
 
     * ``success``: counts with exact 95 % intervals and Fisher's exact test between the two;
     * ``closest``, ``final``, ``distance_at_ms`` (:data:`COMPARISON_TIMES_MS`): median and 10–90 % range, cm, and
       the two-sided Mann–Whitney U test (do one model's distances tend to be larger?);
-    * ``goal``: the probability that ``goal`` or more of N networks of the original would reach, at its measured
-      rate and at the upper end of its interval (how plausible such a count is for the model as it ran);
+    * ``blocks``: the same counts per block of ``goal_of`` seeds (the original's runs in order, ours per folder),
+      own-noise test and fresh re-tests, to show how much a count of 30 networks varies;
+    * ``goal``: the probability that ``goal`` or more of ``goal_of`` networks of the original would reach, at its
+      measured rate and at the upper end of its interval (how plausible such a count is for the model as it ran);
     * ``fresh``: the trained networks re-tested with other noise streams: the original's from the reference data,
-      ours from ``fresh_folders`` (``jaxarm test --from FOLDER --fresh-noise J`` outputs; pooled), each as a count
-      of tests and the mean per-network rate.
+      ours from ``fresh_folders`` (``jaxarm test --from FOLDER --fresh-noise J`` outputs of any of the folders,
+      pooled by network seed), each as a count of tests and the mean per-network rate.
 
-    ``folder``: a ``jaxarm train`` output on the simple arm; ``original``: :func:`original_seed_runs` of its target
-    (read by default)."""
+    ``folder``: a ``jaxarm train`` output on the simple arm, or a list of them on the same target (pooled, e.g. seeds
+    0–29 and 30–59); ``original``: :func:`original_seed_runs` of its
+    target (read by default)."""
     from scipy import stats
 
-    res = json.loads((folder / "results.json").read_text())
-    if res["config"]["arm"] != "simple":
-        raise ValueError(f"{folder}: arm={res['config']['arm']!r}; the original was run on the simple arm")
+    folders = [Path(folder)] if isinstance(folder, (str, Path)) else [Path(f) for f in folder]
+    results = [json.loads((f / "results.json").read_text()) for f in folders]
+    for f, r in zip(folders, results):
+        if r["config"]["arm"] != "simple":
+            raise ValueError(f"{f}: arm={r['config']['arm']!r}; the original was run on the simple arm")
+        if r["target"] != results[0]["target"]:
+            raise ValueError(f"{f}: target={r['target']!r}, but {folders[0]} has {results[0]['target']!r}")
+    res = {"target": results[0]["target"], "networks": [n for r in results for n in r["networks"]]}
     original = original_seed_runs(res["target"]) if original is None else original
     runs = original["runs"]
-    traj = np.load(folder / "trajectories.npz")
-    t_ms = 1000.0 * np.asarray(traj["t"], float)
-    ours_cm = 100.0 * np.asarray(traj["distance"], float)                          # (networks, T)
+    trajs = [np.load(f / "trajectories.npz") for f in folders]
+    t_ms = 1000.0 * np.asarray(trajs[0]["t"], float)
+    ours_cm = 100.0 * np.concatenate([np.asarray(t["distance"], float) for t in trajs])   # (networks, T)
     orig_cm = np.asarray([r["distance_cm"] for r in runs], float)                 # (runs, 101): 0..1000 ms
     orig_t = 10.0 * np.arange(orig_cm.shape[1])
 
@@ -322,19 +330,39 @@ def seed_distribution_comparison(folder: Path, original: dict | None = None, fre
             "networks": len(per), "mean_network_rate": float(np.mean([p.mean() for p in per])),
             "own_noise": _count([r["success"] for r in with_fresh])}
     if fresh_folders:
-        per = np.asarray([[n["success"] for n in json.loads((Path(f) / "results.json").read_text())["networks"]]
-                          for f in fresh_folders], bool)                          # (folders, networks)
-        fresh["ours"] = _count(per) | {"networks": int(per.shape[1]), "tests_per_network": int(per.shape[0]),
-                                       "mean_network_rate": float(per.mean())}
+        by_seed: dict = {}                     # network seed -> its re-tests' outcomes (folders of any of the runs)
+        for f in fresh_folders:
+            for i, n in enumerate(json.loads((Path(f) / "results.json").read_text())["networks"]):
+                by_seed.setdefault(n.get("seed", i), []).append(bool(n["success"]))
+        tests = np.concatenate([np.asarray(v, bool) for v in by_seed.values()])
+        per_network = tests.size / len(by_seed)
+        fresh["ours"] = _count(tests) | {
+            "networks": len(by_seed),
+            "tests_per_network": int(per_network) if per_network.is_integer() else round(per_network, 2),
+            "mean_network_rate": float(np.mean([np.mean(v) for v in by_seed.values()]))}
+    # per block of goal_of seeds (the original's runs in order; ours per folder): how much a count of 30 varies
+    blocks = {"original": [], "ours": []}
+    for b in range(0, len(runs), goal_of):
+        chunk = runs[b:b + goal_of]
+        fr = [np.asarray(r.get("fresh_noise_min_distance_cm") or [], float) <= radius_cm for r in chunk]
+        blocks["original"].append({"label": f"runs {chunk[0].get('k', b)}–{chunk[-1].get('k', b + len(chunk) - 1)}",
+                                   "own_noise": _count([r["success"] for r in chunk]),
+                                   "fresh": _count(np.concatenate(fr)) if sum(f.size for f in fr) else None})
+    for f, r in zip(folders, results):
+        seeds = [n.get("seed", i) for i, n in enumerate(r["networks"])]
+        fr = [v for sd in seeds for v in (by_seed.get(sd, []) if fresh_folders else [])]
+        blocks["ours"].append({"label": str(f), "own_noise": _count([n["success"] for n in r["networks"]]),
+                               "fresh": _count(fr) if fr else None})
     return {
-        "folder": str(folder), "target": res["target"], "measured": original["measured"],
+        "folder": ", ".join(map(str, folders)), "target": res["target"], "measured": original["measured"],
+        "blocks": blocks,
         "success": {"ours": c_ours, "original": c_orig, "fisher_p": float(stats.fisher_exact(table).pvalue)},
         "closest": compare(ours_cm.min(axis=1), orig_cm.min(axis=1)),
         "final": compare(ours_cm[:, -1], orig_cm[:, -1]),
         "distance_at_ms": at,
-        "goal": {"k": goal, "n": c_orig["n"],
-                 "p_at_original_rate": float(stats.binom.sf(goal - 1, c_orig["n"], c_orig["rate"])),
-                 "p_at_original_upper_ci": float(stats.binom.sf(goal - 1, c_orig["n"], c_orig["ci95"][1]))},
+        "goal": {"k": goal, "n": goal_of,
+                 "p_at_original_rate": float(stats.binom.sf(goal - 1, goal_of, c_orig["rate"])),
+                 "p_at_original_upper_ci": float(stats.binom.sf(goal - 1, goal_of, c_orig["ci95"][1]))},
         "fresh": fresh,
     }
 
