@@ -364,13 +364,15 @@ def test_training_history_places_the_original_among_our_networks(tmp_path):
 
 
 def test_original_seed_runs_are_the_reference_runs():
-    # the packaged measurements of the original NEURON model over 30 seeds (docs/results.md): run 0 is the published
+    # the packaged measurements of the original NEURON model over 60 seeds (docs/results.md): run 0 is the published
     # seed pair, so it must be the spec's reference test; every run's success is its closest approach within 4 cm
     from jaxarm.analysis import paper as mod
 
     d = mod.original_seed_runs("left")
     runs = d["runs"]
-    assert len(runs) == 30 and [r["k"] for r in runs] == list(range(30))
+    assert len(runs) == 60 and [r["k"] for r in runs] == list(range(60))
+    assert all(len(r["fresh_noise_min_distance_cm"]) == 9 for r in runs)
+    assert [bool(r.get("epochs")) for r in runs] == [True] * 30 + [False] * 30
     assert {"model", "protocol", "seeds", "machine"} <= set(d["measured"])
     r0 = runs[0]
     assert (r0["inputseed"], r0["dvseed"]) == (1235, 398115)
