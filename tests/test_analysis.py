@@ -468,11 +468,11 @@ def test_original_epoch_comparison_lines_up_epochs_and_columns():
 
 
 def test_original_bottom_runs_do_not_reach():
-    # the original's first 10 runs on the bottom target (docs/results.md): none enters the circle
+    # the original's 30 runs on the bottom target (docs/results.md): none enters the circle
     from jaxarm.analysis import paper as mod
 
     d = mod.original_seed_runs("bottom")
-    assert d["target"] == "bottom" and len(d["runs"]) == 10
+    assert d["target"] == "bottom" and [r["k"] for r in d["runs"]] == list(range(30))
     assert not any(r["success"] for r in d["runs"])
     assert all(min(r["distance_cm"]) > 4.0 and r["distance_cm"][0] == pytest.approx(15.12, abs=0.02)
                for r in d["runs"])
