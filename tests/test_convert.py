@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -188,10 +189,26 @@ def test_parser(model):
     assert "time_scale" in bra.defaulted and bra.damping == 1.0 and bra.max_contraction_velocity == 0.0
 
 
+_NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")
+_COMMENT = re.compile(r"<!--.*?-->", re.S)
+
+
+def _same_up_to_lattice(new: str, old: str, atol: float):
+    """Same text with every number replaced by #, and numbers within ``atol`` (comments, which state mm, ignored)."""
+    new, old = _COMMENT.sub("", new), _COMMENT.sub("", old)
+    assert _NUMBER.sub("#", new) == _NUMBER.sub("#", old)
+    a = np.array([float(x) for x in _NUMBER.findall(new)])
+    b = np.array([float(x) for x in _NUMBER.findall(old)])
+    return float(np.abs(a - b).max(initial=0.0)) <= atol
+
+
 @needs_osim
-def test_regeneration_is_byte_for_byte():
+def test_regeneration_matches_the_committed_assets():
+    """Regenerating gives the committed assets: the same text, fitted site coordinates within 50 um (5 steps of the
+    10 um lattice). Not byte for byte: the least-squares fit of a flat problem ends at a neighbouring lattice
+    minimum under another scipy (seen: one Latissimus_dorsi_2 site 20 um away with scipy 1.17)."""
     xml, table = convert.convert(OSIM)
-    assert xml == ASSET_XML.read_text(), "arm.xml differs: run `python -m jaxarm.arm.convert` and commit"
+    assert _same_up_to_lattice(xml, ASSET_XML.read_text(), 5e-5), "arm.xml differs: run `python -m jaxarm.arm.convert`"
     assert table == ASSET_JSON.read_text(), "muscles.json differs: run `python -m jaxarm.arm.convert` and commit"
 
 
