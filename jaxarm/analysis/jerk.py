@@ -28,16 +28,18 @@ Compare the ordering and the ratios between conditions, not the absolute numbers
 Hogan & Sternad's own recommended variant (v_peak instead of v_mean; the minimum-jerk reach scores
 720 / 1.875² = 204.8).
 
-Precision: finite differences of order 3 cancel digits. With float32 positions, a 15 cm reach sampled every 10 ms
-keeps DLJ to about 0.1-1 %; finer sampling needs float64 (``jax.enable_x64``).
+Precision: third differences cancel digits (with float32 positions a minimum-jerk reach of 15 cm sampled every
+1 ms, the arm's own step, scored 3381 instead of 720), so every function here converts its input to float64 and
+computes with NumPy, whatever the caller's dtype. They analyse recorded paths; they are not traced. Positions that
+were stored in float32 (the arm's own output) carry their rounding into the jerk, which float64 cannot undo:
+:func:`dimensionless_jerk` estimates that noise floor and warns when it exceeds 1 % of the value (subsample to
+10 ms, the closed loop's rate, or record in float64).
 """
 from __future__ import annotations
 
 import math
-from functools import partial
+import warnings
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 #: Points per finite-difference stencil.
@@ -69,68 +71,86 @@ def _stencil(n_samples: int, order: int) -> tuple[np.ndarray, np.ndarray]:
     return index, weights
 
 
-def _derivative(xy, dt, order: int):
-    xy = jnp.asarray(xy)
+def _float64(xy) -> np.ndarray:
+    return np.asarray(xy, dtype=np.float64)
+
+
+def _derivative(xy, dt, order: int) -> np.ndarray:
+    xy = _float64(xy)
     index, weights = _stencil(xy.shape[-2], order)
-    w = jnp.asarray(weights, dtype=xy.dtype)
-    return jnp.einsum("tk,...tkd->...td", w, xy[..., index, :]) / jnp.asarray(dt, xy.dtype) ** order
+    return np.einsum("tk,...tkd->...td", weights, xy[..., index, :]) / float(dt) ** order
 
 
-@jax.jit
-def jerk(xy, dt):
-    """Jerk x'''(t_i) at every sample, (..., T, 2) in m/s³, by the 5-point stencils of this module.
+def jerk(xy, dt) -> np.ndarray:
+    """Jerk x'''(t_i) at every sample, (..., T, 2) float64 in m/s³, by the 5-point stencils of this module.
 
     xy: (..., T, 2) positions in m sampled every dt s (T >= 5).
     """
     return _derivative(xy, dt, 3)
 
 
-@jax.jit
-def velocity(xy, dt):
-    """Velocity x'(t_i) at every sample, (..., T, 2) in m/s, by 5-point stencils (4th-order accurate)."""
+def velocity(xy, dt) -> np.ndarray:
+    """Velocity x'(t_i) at every sample, (..., T, 2) float64 in m/s, by 5-point stencils (4th-order accurate)."""
     return _derivative(xy, dt, 1)
 
 
-def jerk_magnitude(xy, dt):
-    """|x'''(t_i)|, (..., T) in m/s³ (the quantity of the paper's Fig. 7A box plots)."""
-    j = jerk(xy, dt)
-    return jnp.sqrt(jnp.sum(j * j, axis=-1))
+def jerk_magnitude(xy, dt) -> np.ndarray:
+    """|x'''(t_i)|, (..., T) float64 in m/s³ (the quantity of the paper's Fig. 7A box plots)."""
+    return np.linalg.norm(jerk(xy, dt), axis=-1)
 
 
-def path_length(xy):
-    """Polyline length Σ|x[i+1] - x[i]| in m. xy: (..., T, 2)."""
-    xy = jnp.asarray(xy)
-    seg = jnp.diff(xy, axis=-2)
-    return jnp.sum(jnp.sqrt(jnp.sum(seg * seg, axis=-1)), axis=-1)
+def path_length(xy) -> np.ndarray:
+    """Polyline length Σ|x[i+1] - x[i]| in m, float64. xy: (..., T, 2)."""
+    return np.linalg.norm(np.diff(_float64(xy), axis=-2), axis=-1).sum(axis=-1)
 
 
-@partial(jax.jit, static_argnames=("normalise",))
-def dimensionless_jerk(xy, dt, normalise: str = "mean"):
+def dimensionless_jerk(xy, dt, normalise: str = "mean") -> np.ndarray:
     """Dimensionless jerk (∫|x'''|² dt) · D³ / v² of a hand path (see the module docstring for the exact scheme).
 
     Args:
-        xy: (..., T, 2) hand positions in m, sampled every ``dt`` s, T >= 5 (leading axes are batch axes).
+        xy: (..., T, 2) hand positions in m, sampled every ``dt`` s, T >= 5 (leading axes are batch axes); any
+            float dtype, computed in float64.
         dt: sample period in s (cancels out; must be > 0).
         normalise: "mean" (the paper: v = path length / D) or "peak" (Hogan & Sternad's variant: v = max speed,
             speed from the 5-point velocity stencils).
 
     Returns:
-        (...,) dimensionless values; NaN where the hand does not move (v = 0).
+        (...,) float64 dimensionless values; NaN where the hand does not move (v = 0).
     """
     if normalise not in ("mean", "peak"):
         raise ValueError(f"normalise = {normalise!r}: must be 'mean' or 'peak'")
-    xy = jnp.asarray(xy)
-    if not jnp.issubdtype(xy.dtype, jnp.floating):
-        xy = xy.astype(jnp.float32)
-    n = xy.shape[-2]
-    dt = jnp.asarray(dt, xy.dtype)
-    duration = (n - 1) * dt
-    j2 = jnp.sum(jerk(xy, dt) ** 2, axis=-1)
-    integral = dt * (jnp.sum(j2, axis=-1) - 0.5 * (j2[..., 0] + j2[..., -1]))
+    if not float(dt) > 0:
+        raise ValueError(f"dt = {dt!r}: the sample period must be > 0 s")
+    xy_in, xy = xy, _float64(xy)
+    duration = (xy.shape[-2] - 1) * float(dt)
+    j2 = np.sum(jerk(xy, dt) ** 2, axis=-1)
+    integral = float(dt) * (np.sum(j2, axis=-1) - 0.5 * (j2[..., 0] + j2[..., -1]))
     if normalise == "mean":
         v = path_length(xy) / duration
     else:
-        vel = velocity(xy, dt)
-        v = jnp.max(jnp.sqrt(jnp.sum(vel * vel, axis=-1)), axis=-1)
+        v = np.max(np.linalg.norm(velocity(xy, dt), axis=-1), axis=-1)
     v2 = v * v
-    return jnp.where(v2 > 0, integral * duration ** 3 / jnp.where(v2 > 0, v2, 1.0), jnp.nan)
+    value = np.where(v2 > 0, integral * duration ** 3 / np.where(v2 > 0, v2, 1.0), np.nan)
+    _warn_if_rounding_dominates(np.asarray(xy_in).dtype, xy, float(dt), integral, duration, v2, value)
+    return value
+
+
+def _warn_if_rounding_dominates(dtype, xy, dt, integral, duration, v2, value) -> None:
+    """Warn when positions rounded to ``dtype`` (float32 or coarser) make the DLJ uncertain by more than 1 %.
+
+    Rounding error per coordinate: uniform over one ulp at the path's largest coordinate, sd = ulp / sqrt(12);
+    through the 3rd-derivative stencil (sum of squared weights 2.5) it adds sd_j = sqrt(2.5) sd / dt^3 per
+    component. The jerk integral gains ~2 D sd_j^2 and fluctuates by ~2 sqrt(dt I sd_j^2) (I = the integral);
+    three times the latter is the bound used.
+    """
+    if not np.issubdtype(dtype, np.floating) or np.finfo(dtype).bits >= 64:
+        return
+    ulp = np.spacing(np.max(np.abs(xy), axis=(-2, -1)).astype(dtype)).astype(np.float64)
+    sd_j2 = 2.5 * ulp ** 2 / 12.0 / dt ** 6
+    noise = (2.0 * duration * sd_j2 + 6.0 * np.sqrt(dt * integral * sd_j2)) * duration ** 3 / np.where(v2 > 0, v2, 1.0)
+    with np.errstate(invalid="ignore"):
+        bad = np.any(noise > 0.01 * np.abs(value))
+    if bad:
+        warnings.warn(f"dimensionless_jerk: positions stored as {np.dtype(dtype).name} and sampled every {dt * 1e3:g} ms "
+                      "carry rounding noise of more than 1 % of the value; subsample (e.g. to 10 ms) or record the "
+                      "path in float64", RuntimeWarning, stacklevel=3)
