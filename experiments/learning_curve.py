@@ -62,8 +62,8 @@ def curve_for_target(arm: str, target: str, mp, epochs: int, n: int, seed: int, 
     meta = {"arm": arm, "target": target, "networks": n, "seed": seed, "epoch_s": epoch_s, "metaparams": mp.to_dict()}
     with Checkpointer(out / "checkpoints" / target) as ckpt:
         done = 0
-        if ckpt.latest_step() is not None:
-            saved = ckpt.read_meta()
+        saved = ckpt.read_meta()
+        if saved is not None:
             if {k: saved.get(k) for k in meta} != meta:
                 raise SystemExit(f"{out / 'checkpoints' / target} holds another run ({saved}); use another --out")
             (carry,), _ = ckpt.restore((carry,))

@@ -1,12 +1,21 @@
 """Orbax checkpoints of any pytree state plus a JSON description, keyed by an integer step.
 
 Orbax writes each step to a temporary folder and renames it when complete, so a run killed while saving resumes
-from the previous complete checkpoint. Restoring needs the state's structure (a state or ``jax.eval_shape`` of its
-constructor); arrays come back with their exact bits, so a resumed run equals an uninterrupted one.
+from the previous complete checkpoint. A step that was completed but later damaged (a truncated or missing data
+file, as a full disk leaves it) is found when it is read: it is moved aside to ``DIR/unreadable-<step>`` with a
+one-line warning naming it, and the previous step is used, so nothing older is lost and the run resumes.
+Restoring needs the state's structure (a state or ``jax.eval_shape`` of its constructor); arrays come back with
+their exact bits, so a resumed run equals an uninterrupted one.
 """
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import sys
+import time
 from pathlib import Path
+from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -14,11 +23,53 @@ import numpy as np
 import orbax.checkpoint as ocp
 
 
+#: Name of the integrity manifest in every step folder.
+MANIFEST = "MANIFEST"
+
+
+def _warn(message: str) -> None:
+    print(f"jaxarm: warning: {message}", file=sys.stderr, flush=True)
+
+
+def _file_table(folder: Path) -> dict[str, list]:
+    """{relative path: [size in bytes, sha256]} of every file below ``folder`` but the manifest."""
+    table = {}
+    for path in sorted(folder.rglob("*")):
+        if path.is_file() and path.name != MANIFEST:
+            table[str(path.relative_to(folder))] = [path.stat().st_size, hashlib.sha256(path.read_bytes()).hexdigest()]
+    return table
+
+
+def write_manifest(folder: Path) -> None:
+    """Write ``folder/MANIFEST`` atomically (a step killed before it has none and is checked by orbax's read)."""
+    tmp = folder / (MANIFEST + ".tmp")
+    tmp.write_text(json.dumps(_file_table(folder)))
+    os.replace(tmp, folder / MANIFEST)
+
+
+def check_manifest(folder: Path) -> None:
+    """Raise ValueError naming the first file of ``folder`` that is missing, added, resized or changed."""
+    path = folder / MANIFEST
+    if not path.exists():
+        return
+    expected, found = json.loads(path.read_text()), _file_table(folder)
+    for name in sorted(set(expected) | set(found)):
+        if name not in found:
+            raise ValueError(f"{name} is missing")
+        if name not in expected:
+            continue   # a file orbax adds on read is no damage
+        if found[name][0] != expected[name][0]:
+            raise ValueError(f"{name} has {found[name][0]} bytes, {expected[name][0]} written")
+        if found[name][1] != expected[name][1]:
+            raise ValueError(f"{name} changed since it was written")
+
+
 class Checkpointer:
     """Save and restore ``(state, meta)`` in ``directory``, keeping the last ``max_to_keep`` steps."""
 
-    def __init__(self, directory: str | Path, max_to_keep: int = 2):
+    def __init__(self, directory: str | Path, max_to_keep: int = 2, warn: Callable[[str], None] = _warn):
         self.directory = Path(directory).absolute()
+        self._warn = warn
         options = ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,
                                                enable_async_checkpointing=False)
         self._manager = ocp.CheckpointManager(self.directory, options=options, item_names=("state", "meta"))
@@ -31,23 +82,55 @@ class Checkpointer:
         self._manager.save(int(step), args=ocp.args.Composite(state=ocp.args.StandardSave(state),
                                                               meta=ocp.args.JsonSave(meta)), force=True)
         self._manager.wait_until_finished()
+        write_manifest(self.directory / str(int(step)))
+
+    def _newest_readable(self, read, step: int | None):
+        """``read(step)`` at ``step``, or (step None) at the newest step that can be read, moving unreadable newer
+        steps aside. Returns (step, value)."""
+        if step is not None:
+            return step, read(step)
+        while (step := self.latest_step()) is not None:
+            try:
+                check_manifest(self.directory / str(step))
+                return step, read(step)
+            except Exception as e:  # noqa: BLE001 - any failure to read a step means that step is damaged
+                self._quarantine(step, e)
+        raise FileNotFoundError(f"no checkpoint in {self.directory}")
+
+    def _quarantine(self, step: int, error: Exception) -> None:
+        bad = self.directory / str(step)
+        aside = self.directory / f"unreadable-{step}-{time.strftime('%Y%m%dT%H%M%S')}"
+        bad.rename(aside)
+        self._manager.reload()
+        why = str(error).strip().splitlines()[0][:160] if str(error).strip() else type(error).__name__
+        previous = self.latest_step()
+        then = f"using step {previous}" if previous is not None else "no earlier checkpoint: starting afresh"
+        self._warn(f"checkpoint {bad} is unreadable ({why}); moved to {aside.name}, {then}")
 
     def restore(self, like_state, step: int | None = None):
-        """``(state, meta)`` at ``step`` (default: the latest); ``like_state`` gives structure, shapes and dtypes."""
-        step = self.latest_step() if step is None else step
-        if step is None:
-            raise FileNotFoundError(f"no checkpoint in {self.directory}")
+        """``(state, meta)`` at ``step`` (default: the newest readable step; see the module docstring);
+        ``like_state`` gives structure, shapes and dtypes. :meth:`latest_step` is the step restored."""
         abstract = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), like_state)
-        restored = self._manager.restore(step, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract),
-                                                                       meta=ocp.args.JsonRestore()))
-        # Orbax returns device-committed arrays; uncommitted copies hit the already-compiled functions' cache.
-        return jax.tree.map(lambda x: jnp.asarray(np.asarray(x)), restored.state), restored.meta
 
-    def read_meta(self, step: int | None = None) -> dict:
-        step = self.latest_step() if step is None else step
-        if step is None:
-            raise FileNotFoundError(f"no checkpoint in {self.directory}")
-        return self._manager.restore(step, args=ocp.args.Composite(meta=ocp.args.JsonRestore())).meta
+        def read(s):
+            restored = self._manager.restore(s, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract),
+                                                                        meta=ocp.args.JsonRestore()))
+            # Orbax returns device-committed arrays; uncommitted copies hit the already-compiled functions' cache.
+            return jax.tree.map(lambda x: jnp.asarray(np.asarray(x)), restored.state), restored.meta
+
+        return self._newest_readable(read, step)[1]
+
+    def read_meta(self, step: int | None = None) -> dict | None:
+        """The JSON description at ``step``, or (step None) at the newest step that can be read, or None if there is
+        no readable checkpoint (then there is nothing to resume)."""
+        try:
+            return self._newest_readable(
+                lambda s: self._manager.restore(s, args=ocp.args.Composite(meta=ocp.args.JsonRestore())).meta,
+                step)[1]
+        except FileNotFoundError:
+            if step is not None:
+                raise
+            return None
 
     def close(self) -> None:
         self._manager.close()

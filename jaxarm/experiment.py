@@ -94,8 +94,8 @@ class Run:
         history = self.empty_history(carry)
         done = 0
         with Checkpointer(self.out / "checkpoints") as ckpt:
-            if ckpt.latest_step() is not None:
-                meta = ckpt.read_meta()
+            meta = ckpt.read_meta()
+            if meta is not None:
                 if meta != self.meta():
                     raise SystemExit(f"{self.out / 'checkpoints'} holds a different run ({meta}); "
                                      "use another --out or delete it")
@@ -413,10 +413,10 @@ def test_main(argv: list[str] | None = None) -> int:
         ap.error(f"--from {args.src}: no checkpoints/ folder there; give the --out folder of a `jaxarm train` run "
                  "(or a target's seeds/ or top30/ folder of a `jaxarm reproduce` run)")
     with Checkpointer(args.src / "checkpoints") as ckpt:
-        try:
-            meta = ckpt.read_meta()
-        except FileNotFoundError as e:
-            ap.error(f"--from {args.src}: {e}; the training run wrote no completed epoch yet")
+        meta = ckpt.read_meta()
+        if meta is None:
+            ap.error(f"--from {args.src}: no readable checkpoint in {ckpt.directory}; the training run wrote no "
+                     "completed epoch yet")
     if meta["epochs"] != ckpt.latest_step():
         raise SystemExit(f"{args.src} finished {ckpt.latest_step()} of {meta['epochs']} epochs: rerun `jaxarm train` "
                          "with the same options to finish it first")

@@ -74,6 +74,25 @@ def test_train_command_resumes_bit_for_bit(tmp_path):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+def test_train_resumes_from_the_previous_checkpoint_when_the_newest_is_damaged(tmp_path, capsys):
+    from conftest import truncate_newest_checkpoint
+    from jaxarm.experiment import Run
+
+    mp = MetaParams.original()
+    cfg = LoopConfig(arm="simple", task=TaskConfig(epochs=3, epoch_duration_s=0.3))
+    full = Run(cfg, 2, 5, tmp_path / "full", mp).train(progress=False)
+    Run(cfg, 2, 5, tmp_path / "killed", mp).train(progress=False, stop_after=2)
+    bad = truncate_newest_checkpoint(tmp_path / "killed" / "checkpoints")
+    assert bad.name == "2"
+    resumed = Run(cfg, 2, 5, tmp_path / "killed", mp).train(progress=False)
+    warning = [line for line in capsys.readouterr().err.splitlines() if "unreadable" in line]
+    assert len(warning) == 1 and str(bad) in warning[0] and "using step 1" in warning[0]
+    assert resumed[3] == 2  # epochs 2 and 3 ran again from the complete checkpoint of epoch 1
+    for a, b in zip(jax.tree.leaves((full[0], full[1])), jax.tree.leaves((resumed[0], resumed[1]))):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert any(p.name.startswith("unreadable-2-") for p in (tmp_path / "killed" / "checkpoints").iterdir())
+
+
 def test_train_cli_writes_results(tmp_path, capsys):
     from jaxarm.cli import main
 

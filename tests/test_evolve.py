@@ -383,6 +383,22 @@ def test_resumed_search_equals_uninterrupted_bit_for_bit(strategy, tmp_path):
                    tmp_path / "killed", fitness_meta=meta, log=quiet)
 
 
+def test_search_resumes_past_a_damaged_checkpoint(tmp_path, capsys):
+    from conftest import truncate_newest_checkpoint
+
+    space = SearchSpace.make(freeze=["epochs", "explore_tot"])
+    config = EvolveConfig(strategy=CHEAP, population_size=4, generations=6, chunk_size=2, top_k=3)
+    fitness, meta, quiet = fit.Fitness(fit.make_quadratic(0.01)), {"name": "quadratic"}, (lambda line: None)
+    full = run_search(fitness, space, config, tmp_path / "full", fitness_meta=meta, log=quiet)
+    run_search(fitness, space, config, tmp_path / "killed", fitness_meta=meta, max_chunks=2, log=quiet)
+    truncate_newest_checkpoint(tmp_path / "killed" / "checkpoints")     # generation 4 damaged
+    lines = []
+    resumed = run_search(fitness, space, config, tmp_path / "killed", fitness_meta=meta, log=lines.append)
+    assert "unreadable" in capsys.readouterr().err
+    assert any("resuming from the checkpoint at generation 2/6" in line for line in lines)
+    assert leaves_equal(full.state, resumed.state)
+
+
 def test_checkpoint_restores_exact_state(tmp_path):
     search = make_search(fit.make_quadratic(0.01), SMALL, EvolveConfig(strategy=CHEAP, population_size=4,
                                                                       generations=4, chunk_size=2))

@@ -184,6 +184,24 @@ def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
     assert again["networks"] == top30["networks"]
 
 
+def test_reproduce_resumes_past_a_damaged_checkpoint(tmp_path, preset_dir, capsys):
+    from conftest import truncate_newest_checkpoint
+    from jaxarm.evolve.reproduce import reproduce
+
+    p = presets.load("quad", preset_dir)
+    kw = dict(networks=2, epochs=2, epoch_s=0.2, test_s=0.2, top=2, progress=False, log=lambda _: None)
+    assert reproduce(p, "simple", ["left"], tmp_path / "full", **kw) is not None
+    out = tmp_path / "killed"
+    assert reproduce(p, "simple", ["left"], out, stop_after=1, **kw) is None
+    truncate_newest_checkpoint(out / "left" / "seeds" / "checkpoints")
+    assert reproduce(p, "simple", ["left"], out, **kw) is not None
+    assert "no earlier checkpoint: starting afresh" in capsys.readouterr().err
+    for folder in ("seeds", "top30"):
+        a = json.loads((tmp_path / "full" / "left" / folder / "results.json").read_text())
+        b = json.loads((out / "left" / folder / "results.json").read_text())
+        assert a["networks"] == b["networks"] and a["history"] == b["history"]
+
+
 def test_original_preset_reports_top30_null(tmp_path, capsys):
     out = tmp_path / "orig"
     assert main(["reproduce", "--preset", "original", "--out", str(out), *TINY]) == 0

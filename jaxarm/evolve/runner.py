@@ -173,8 +173,8 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
 
     with SearchCheckpointer(out / CHECKPOINT_DIR) as ckpt:
         costs = {"compile_s": 0.0, "run_s": 0.0, "evaluations": 0}
-        if ckpt.latest_generation() is not None:
-            saved = ckpt.read_meta()
+        saved = ckpt.read_meta()
+        if saved is not None:
             saved_run = saved.get("run", {})
             # The planned number of generations is not part of a search's identity: asking for more extends it.
             saved_g = saved_run.get("config", {}).get("generations", G)
