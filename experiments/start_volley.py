@@ -43,10 +43,17 @@ def volley(crossing: str, networks: int, seed: int, network_npz: Path | None = N
     mp = MetaParams.original()
     n_steps = int(round(BINS_MS[-1] / cfg.network.dt_ms))
 
+    first = cfg.network.steps_per_interface
+    proprio = loop.arm.observe(loop.arm.init(loop.start_q)).proprio
+
     @jax.jit
     def spikes(key):
+        # as the closed loop: the start volley at 1 ms, the first P update (arm still) after the first interval
         st = loop.init(key, wgain, bab.init_babbling(cfg.babbling), bab.em_noise_rates_in_test(mp))
-        return loop.net.run(wiring, st.net, loop.net_params(mp), n_steps, collect=True)[1]
+        net, a = loop.net.run(wiring, st.net, loop.net_params(mp), first, collect=True)
+        net = loop.net.set_lengths(net, proprio)
+        return jax.numpy.concatenate([a, loop.net.run(wiring, net, loop.net_params(mp), n_steps - first,
+                                                      collect=True)[1]])
 
     pops = loop.pops
     out = {p: np.zeros(len(BINS_MS) - 1) for p in POPULATIONS}

@@ -47,7 +47,7 @@ def _compiled(config: LoopConfig):
 
 
 #: NetworkConfig fields `jaxarm train` sets from its options (--dt-ms, --threshold-test); recorded in the run's meta.
-NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing")
+NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "readout_clip")
 
 
 def network_config(source) -> NetworkConfig:
@@ -80,6 +80,21 @@ class Run:
         net, default = self.config.network, NetworkConfig()
         return {k: getattr(net, k) for k in NETWORK_OPTIONS if getattr(net, k) != getattr(default, k)}
 
+    def check_capacity(self, lost_spikes, what: str, overflow=None) -> None:
+        """Fail with the counts if any network lost a spike (a full spike list) or a synapse (a full delivery row):
+        a fixed-capacity overflow is an error, never a rounding. ``lost_spikes``, ``overflow``: (networks,)."""
+        for counts, kind, fix in ((lost_spikes, "lost spikes", "raise NetworkConfig.max_passes or spike_capacity"),
+                                  (overflow, "synapses left out of the delivery tables",
+                                   "raise NetworkConfig.out_capacity")):
+            if counts is None:
+                continue
+            counts = np.asarray(counts).reshape(-1)
+            bad = np.nonzero(counts)[0]
+            if bad.size:
+                nets = ", ".join(f"{self.seed + i} ({int(counts[i])})" for i in bad[:10])
+                raise RuntimeError(f"{what}: {int(counts.sum())} {kind} in network(s) of seed {nets}"
+                                   f"{' ...' if bad.size > 10 else ''}; {fix} (or use the native kernel)")
+
     def empty_history(self, carry) -> EpochSummary:
         one = jax.eval_shape(lambda c: self.epoch_fn(c, self.mp)[1], carry)
         return jax.tree.map(lambda s: jnp.zeros((self.config.task.epochs,) + s.shape, s.dtype), one)
@@ -91,6 +106,7 @@ class Run:
 
         epochs = self.config.task.epochs
         carry = self.init_fn(network_keys(self.seed, self.n))
+        self.check_capacity(None, "wiring", carry.trained.wiring.out_overflow)
         history = self.empty_history(carry)
         done = 0
         with Checkpointer(self.out / "checkpoints") as ckpt:
@@ -112,6 +128,7 @@ class Run:
                 carry, summary = epoch_fn(carry, self.mp)
                 jax.block_until_ready(summary)
                 wall += time.perf_counter() - t0
+                self.check_capacity(summary.lost_spikes, f"training epoch {e + 1}")
                 history = jax.tree.map(lambda h, s: h.at[e].set(s), history, summary)
                 ckpt.save(e + 1, (carry, history), self.meta())
                 if bar is not None:
@@ -125,7 +142,9 @@ class Run:
 
     def test(self, trained: Trained):
         keys = jax.vmap(lambda k: jax.random.fold_in(k, 7))(network_keys(self.seed, self.n))
-        return self.test_fn(keys, trained, self.mp)
+        result = self.test_fn(keys, trained, self.mp)
+        self.check_capacity(result.lost_spikes, "test")
+        return result
 
     def naive(self) -> Trained:
         return self.init_fn(network_keys(self.seed, self.n)).trained
@@ -331,6 +350,9 @@ def train_main(argv: list[str] | None = None) -> int:
                     help="when a cell's threshold is tested: every_step (default) or on_event (only in steps with "
                          "input, as the event-driven original; NetworkConfig.threshold_test)")
     ap.add_argument("--crossing", choices=CROSSINGS, default=None, help=CROSSING_HELP)
+    ap.add_argument("--no-readout-clip", dest="readout_clip", action="store_const", const=False, default=None,
+                    help="do not clip the motor excitations to [0, 1] (the hoc code does not; the default clips, as "
+                         "the paper's thresholded readout and every published preset; NetworkConfig.readout_clip)")
     args = ap.parse_args(argv)
     _check(ap, args)
     try:

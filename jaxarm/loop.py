@@ -18,6 +18,7 @@ metaparameter sets and ``lax.scan``-ned over intervals and epochs.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, NamedTuple
@@ -32,7 +33,7 @@ from jaxarm.config.validate import ConfigError, check_choice
 from jaxarm.learning import babbling as bab
 from jaxarm.learning import critic as crit
 from jaxarm.learning import stdp
-from jaxarm.learning.metaparams import MetaParams
+from jaxarm.learning.metaparams import BOUNDS, MetaParams
 from jaxarm.network import noise as noise_mod
 from jaxarm.network import readout as ro
 from jaxarm.network.network import Network, NetworkParams
@@ -41,6 +42,8 @@ from jaxarm.network.wiring import PATHWAYS, CELL_TYPE
 from jaxarm.task.config import TaskConfig
 
 ARMS = ("simple", "musculoskeletal")
+#: Longest run (epoch or test) in network clock steps: float32 times step * dt keep a quarter-step resolution.
+MAX_RUN_STEPS = 2 ** 22
 POP_NAMES = ("ES", "IS", "ISL", "EM", "IM", "IML")
 
 
@@ -82,6 +85,19 @@ class LoopConfig:
         if abs(self.network.interface_ms - 1000.0 * self.task.update_interval_s) > 1e-9:
             raise ConfigError(f"LoopConfig: network.interface_ms = {self.network.interface_ms} must equal "
                               f"task.update_interval_s = {self.task.update_interval_s} s")
+        # Spike and tag times are float32 ms (step * dt): exact to a quarter step up to 2**22 steps per run.
+        for name in ("epoch_duration_s", "test_duration_s"):
+            seconds = getattr(self.task, name)
+            if seconds * 1000.0 / self.network.dt_ms > MAX_RUN_STEPS:
+                raise ConfigError(f"TaskConfig.{name} = {seconds:g} s: at NetworkConfig.dt_ms = {self.network.dt_ms:g} "
+                                  f"a run may be at most {MAX_RUN_STEPS * self.network.dt_ms / 1000.0:g} s (2**22 "
+                                  "steps: float32 spike times resolve a quarter step up to there)")
+        window_hi = BOUNDS["mcmd_spk_wd_ms"].hi + ro.LAG_MS
+        if (self.network.readout_bins - 1) * self.network.interface_ms < window_hi:
+            raise ConfigError(f"NetworkConfig.readout_bins = {self.network.readout_bins}: the readout history must "
+                              f"reach back {window_hi:g} ms (mcmd_spk_wd_ms up to {BOUNDS['mcmd_spk_wd_ms'].hi:g} ms "
+                              f"plus the {ro.LAG_MS:g} ms lag): at least "
+                              f"{math.ceil(window_hi / self.network.interface_ms) + 1} bins")
 
 
 class LoopState(NamedTuple):
@@ -150,8 +166,10 @@ class ClosedLoop:
     def init(self, noise_key, wgain, babble: bab.BabblingState, em_rates_hz) -> LoopState:
         """State at the start of a run (an epoch or the test): cells at rest, arm at the start posture."""
         arm_state = self.arm.init(self.start_q)
+        # No P update at t = 0: every P cell fires its start spike at 1 ms and the first update comes at the end of
+        # the first interval (10 ms), as in the original (msarm.hoc); an update here moved the start spike of the
+        # ~12 cells in range at the start posture to 10 ms.
         net = self.net.init(noise_key, wgain=wgain, em_rates_hz=em_rates_hz)
-        net = self.net.set_lengths(net, self.arm.observe(arm_state).proprio)
         err0 = self._critic_error(self.arm.observe(arm_state))
         return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), babble=babble,
                          err_hist_m=jnp.stack([err0, err0]), last_rl_ms=jnp.zeros((), jnp.float32),
@@ -194,9 +212,11 @@ class ClosedLoop:
         c = self.config
         counts_before = state.net.spike_count
         net, _ = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval, collect=False)
-        t_ms = self.net.time_ms(net)
         em_counts = ro.em_group_counts(c.network, net.spike_count - counts_before)
         readout = ro.push(state.readout, em_counts)
+        # The loop's clock counts whole intervals (an integer), so its times are exact multiples of interface_ms
+        # whatever the network's dt (float32(step) * dt is not exact for dt = 0.1 ms).
+        t_ms = readout.pushes.astype(jnp.float32) * c.network.interface_ms
         u = ro.excitation(c.network, readout, v_em_max=mp.v_em_max, window_ms=mp.mcmd_spk_wd_ms)
         arm_state = self._move_arm(state.arm, u)
         obs = self.arm.observe(arm_state)

@@ -314,3 +314,15 @@ def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
     assert paths[0]["min_distance_m"] != res["networks"][0]["min_distance_m"] != paths[2]["min_distance_m"]
     with pytest.raises(SystemExit):
         main(["test", "--from", str(out), "--fresh-noise", "-1", "--out", str(tmp_path / "bad")])
+
+
+def test_a_run_that_loses_spikes_fails_with_the_counts(tmp_path):
+    """The XLA kernel's spike lists are fixed-capacity: squeezed to one entry and one pass, spikes are lost, and a
+    training run stops with the counts instead of carrying on with a wrong network."""
+    from jaxarm.experiment import Run
+    from jaxarm.network import NetworkConfig
+
+    net = NetworkConfig(kernel="xla", spike_capacity=(1, 1, 1), batch_spike_capacity=(0.01, 0.01, 0.01), max_passes=1)
+    cfg = LoopConfig(arm="simple", network=net, task=TaskConfig(epochs=1, epoch_duration_s=0.1, test_duration_s=0.1))
+    with pytest.raises(RuntimeError, match=r"training epoch 1: \d+ lost spikes in network\(s\) of seed 3 \(\d+\)"):
+        Run(cfg, 2, 3, tmp_path / "lossy", MetaParams.original()).train(progress=False)

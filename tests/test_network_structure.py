@@ -1,5 +1,8 @@
 """Network structure: populations, ids, groups, fixed in-degree wiring and its per-post layout (spec §2)."""
+import dataclasses
+
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -185,3 +188,46 @@ def test_wiring_from_edges_names_what_does_not_fit(wiring):
         wiring_from_edges(config, *iml_to_es, np.ones(n + 1))
     with pytest.raises(ValueError, match=r"pre ids must be in \[0, 704\)"):
         wiring_from_edges(config, np.append(pre, 704), np.append(post, 0), np.ones(n + 1))
+
+
+def test_pathway_order_and_int32_limits_are_checked():
+    from jaxarm.network.wiring import PATHWAYS, check_pathway_order
+
+    check_pathway_order(PATHWAYS)
+    with pytest.raises(ConfigError, match="plastic pathways must come first"):
+        check_pathway_order(PATHWAYS[1:] + PATHWAYS[:1])
+    with pytest.raises(ConfigError, match="P -> ES must be the last pathway"):
+        check_pathway_order(PATHWAYS[:-2] + PATHWAYS[-1:] + PATHWAYS[-2:-1])
+    # 4 channels x n_cells << 10 must fit int32: 524,287 network cells at most
+    with pytest.raises(ConfigError, match="at most 524287"):
+        WiringLayout(NetworkConfig(sizes=(100_000,) * 6 + (192,)))
+    WiringLayout(NetworkConfig(sizes=(87_000,) * 6 + (192,), pmat_scale=0.001))   # 522,000 cells: fits
+    with pytest.raises(ConfigError, match="synapses do not fit int32"):
+        WiringLayout(NetworkConfig(sizes=(87_000,) * 6 + (192,)))
+
+
+def test_loop_checks_run_length_and_readout_history():
+    from jaxarm.loop import LoopConfig
+    from jaxarm.task.config import TaskConfig
+
+    # float32 spike times keep a quarter step up to 2**22 steps: 41.9 s at dt 0.01 ms
+    with pytest.raises(ConfigError, match=r"epoch_duration_s = 60 s: at NetworkConfig.dt_ms = 0.01 .* at most 41.9"):
+        LoopConfig(network=NetworkConfig(dt_ms=0.01), task=TaskConfig(epoch_duration_s=60.0))
+    LoopConfig(network=NetworkConfig(dt_ms=0.01), task=TaskConfig(epoch_duration_s=30.0))
+    # the readout must see back 200 + 50 ms, the longest window the metaparameters allow
+    with pytest.raises(ConfigError, match="readout_bins = 16: .* at least 26 bins"):
+        LoopConfig(network=NetworkConfig(readout_bins=16))
+
+
+def test_readout_sums_the_whole_window_up_to_its_bound():
+    from jaxarm.network import readout as ro
+
+    cfg = NetworkConfig()
+    state = ro.init_readout(cfg)
+    for _ in range(cfg.readout_bins):
+        state = ro.push(state, jnp.ones(4))
+    for window in (10.0, 76.08, 100.0, 150.0, 200.0):
+        # rows ending 60, 70, ... ms back up to window + 50 ms: floor(window / 10) + (1 if not a multiple) rows
+        expected = np.floor((window + 50.0) / 10.0) - 5     # 7 rows for the original 76.08 ms, 20 for 200 ms
+        u = ro.excitation(dataclasses.replace(cfg, readout_clip=False), state, v_em_max=1.0, window_ms=window)
+        np.testing.assert_allclose(np.asarray(u), np.full(4, expected))

@@ -42,8 +42,8 @@ class NetworkConfig:
         p_start_ms: every P cell fires once at this time (NSLOC ``start``), ms.
         readout_clip: clip the motor excitation to [0, 1] (the paper's "thresholded linear" readout). The hoc
             code does not clip (spec §3, §11.7); False reproduces it.
-        readout_bins: length of the EM spike-count history, in interface periods; must cover the readout window
-            plus its lag (default 76.08 + 50 ms).
+        readout_bins: length of the EM spike-count history, in interface periods; must cover the longest readout
+            window the metaparameters allow plus its lag (200 + 50 ms: 26 bins; the loop checks it).
         spike_capacity: spike-list length per delivery block (lax.top_k) of each spike group (ES, EM, inhibitory)
             for one network, and the shortest list of a batch. Spikes beyond it in one block are delivered by
             further passes in that block (exact); each extra pass is counted in ``State.counters.extra_passes`` and
@@ -99,7 +99,7 @@ class NetworkConfig:
     p_rate_hz: float = 100.0
     p_start_ms: float = 1.0
     readout_clip: bool = True
-    readout_bins: int = 16
+    readout_bins: int = 26
     spike_capacity: tuple[int, int, int] = (16, 8, 8)
     batch_spike_capacity: tuple[float, float, float] = (2.0, 1.0, 1.0)
     block_steps: int = 0

@@ -78,14 +78,18 @@ def make_reaching(options: fitness.FitnessOptions, per_target=_authors_distance,
     radius_m = fns[0].loop.config.task.success_radius_m
 
     def fn(key, mp):
-        dist, success = [], []
+        dist, success, lost = [], [], jnp.zeros((), jnp.int32)
         for f, k in zip(fns, jax.random.split(key, len(fns))):  # a few targets: unrolled
             k_train, k_test = jax.random.split(k)
-            trained, _ = f.train(k_train, mp)
+            trained, history = f.train(k_train, mp)
             result = f.test(k_test, trained, mp)
             dist.append(per_target(result.distance_m, radius_m))
             success.append(result.success)
-        return combine(jnp.stack(dist)), {"success_rate": jnp.mean(jnp.stack(success).astype(jnp.float32))}
+            lost = lost + jnp.sum(history.lost_spikes) + result.lost_spikes + trained.wiring.out_overflow
+        # a fixed-capacity overflow (lost spike or synapse) is an error: the evaluation fails (NaN: counted and
+        # reported as a failed evaluation, ranked last)
+        value = jnp.where(lost > 0, jnp.nan, combine(jnp.stack(dist)))
+        return value, {"success_rate": jnp.mean(jnp.stack(success).astype(jnp.float32))}
 
     test_s = fns[0].loop.config.task.test_duration_s
     epochs = fns[0].loop.config.task.epochs

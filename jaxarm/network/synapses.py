@@ -51,6 +51,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from jaxarm.config.validate import ConfigError
 from jaxarm.network.cell import E_AMPA, E_GABA, event_load
 from jaxarm.network.wiring import DELAY_BITS, N_CHANNELS, GroupTables, Wiring
 
@@ -170,6 +171,11 @@ def _deliver_batched(ring, pdope_ms, counters: Counters, spike_step, last_spike_
     work follows the batch's total number of spikes rather than the busiest network's: a burst in one network costs
     extra passes of one list, not of every network's list."""
     b = ring.shape[0]
+    # flat indices into the batch's rings and tags are int32
+    if b * max(ring.shape[1], pdope_ms.shape[-1]) >= 2 ** 31:
+        raise ConfigError(f"a batch of {b} networks with {ring.shape[1]} ring entries each overflows the XLA "
+                          f"kernel's int32 indices: at most {(2 ** 31 - 1) // max(ring.shape[1], pdope_ms.shape[-1])} "
+                          "networks per device (shard the batch over more devices, or use the native kernel)")
     extra = jnp.zeros((b,), jnp.int32)
     lost = jnp.zeros((b,), jnp.int32)
     for g, (tables, steps) in enumerate(zip(groups, _group_values(spike_step, shape))):

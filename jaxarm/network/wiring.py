@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.config.network import POPULATIONS, NetworkConfig
+from jaxarm.config.validate import ConfigError
 from jaxarm.network.populations import CELL_TYPE, Populations
 
 #: Receptor channels of the per-cell synaptic input rows.
@@ -136,11 +137,42 @@ class Wiring(NamedTuple):
     out_overflow: jnp.ndarray   # () synapses left out of the delivery tables (must be 0)
 
 
+def check_pathway_order(pathways) -> None:
+    """The order the kernels and the learning rule rely on, checked: the plastic pathways first (plastic synapse k
+    is synapse k), then the fixed ones, and P -> ES, the only pathway from P (delivered from precomputed trains),
+    last. Raises ConfigError naming the first pathway out of place."""
+    names = [pw.name for pw in pathways]
+    n_plastic = sum(pw.plastic for pw in pathways)
+    for i, pw in enumerate(pathways):
+        if pw.plastic != (i < n_plastic):
+            raise ConfigError(f"pathway {pw.name} (position {i}): the {n_plastic} plastic pathways must come first")
+        if (pw.pre == "P") != (i == len(pathways) - 1) or (pw.pre == "P" and pw.post != "ES"):
+            raise ConfigError(f"pathway {pw.name} (position {i}): P -> ES must be the last pathway and the only one "
+                              f"from P; got {', '.join(names)}")
+
+
 @dataclass(frozen=True)
 class WiringLayout:
-    """Static shape of the wiring for a configuration (Python ints only; hashable)."""
+    """Static shape of the wiring for a configuration (Python ints only; hashable).
+
+    Construction checks the pathway order (:func:`check_pathway_order`) and that every index the kernels form fits
+    int32: ``target << DELAY_BITS`` (4 n_cells << 10 < 2**31, so at most 524,287 network cells), the synapse ids,
+    and a delay of 5 ms in DELAY_BITS bits."""
 
     config: NetworkConfig
+
+    def __post_init__(self):
+        check_pathway_order(PATHWAYS)
+        c = self.config
+        if (N_CHANNELS * c.n_cells) << DELAY_BITS >= 2 ** 31:
+            raise ConfigError(f"NetworkConfig.sizes = {c.sizes}: {c.n_cells} network cells; at most "
+                              f"{(2 ** 31 >> DELAY_BITS) // N_CHANNELS - 1} fit the int32 packed (target << "
+                              f"{DELAY_BITS} | delay) synapse words")
+        if self.n_syn + 1 >= 2 ** 31:
+            raise ConfigError(f"NetworkConfig.sizes = {c.sizes}: {self.n_syn} synapses do not fit int32 ids")
+        if c.steps(max(pw.delay_ms[1] for pw in PATHWAYS)) >= 1 << DELAY_BITS:
+            raise ConfigError(f"NetworkConfig.dt_ms = {c.dt_ms}: the longest delay does not fit {DELAY_BITS} bits "
+                              "of steps")
 
     @cached_property
     def pops(self) -> Populations:
@@ -306,8 +338,6 @@ def _build_wiring(config: NetworkConfig, pre_syn, delay_ms) -> Wiring:
     weight = jnp.concatenate(weights + [jnp.zeros(1, jnp.float32)])
     nmda = jnp.concatenate(nmdas + [jnp.zeros(1, jnp.float32)])
     target = jnp.concatenate(targets + [jnp.zeros(1, jnp.int32)])
-    if int(config.steps(5.0)) >= 1 << DELAY_BITS:
-        raise ValueError(f"dt_ms = {config.dt_ms}: delays of {config.steps(5.0)} steps do not fit {DELAY_BITS} bits")
     packed = (target << DELAY_BITS) | delay
     n_net = layout.n_network_syn  # P -> ES (the last pathway) is delivered separately
     by_pre, overflow = _delivery_lists(pre[:n_net], config.n_cells, max(layout.out_capacity), layout.n_syn)
