@@ -3,9 +3,13 @@
 One step advances ``config.dt_s`` (1 ms by default) of simulated time (SI units throughout):
 
 1. the 4 group excitations are spread over the driven muscles (spec §8; passive muscles get none);
-2. each muscle's activation and fibre length advance at the current muscle-tendon length (:mod:`jaxarm.arm.muscle`);
-3. tendon forces times moment arms give joint torques; beyond the joint ranges a penalty spring-damper adds limit
-   torques (the original's joint-limit force subsystem; MuJoCo's constraint solver stays off);
+2. each muscle's activation and fibre length advance in ``config.muscle_substeps`` steps (0.1 ms by default, the
+   authors' integrator step) along the muscle-tendon length extrapolated from the current length and its rate
+   (moment arms times joint velocities) (:mod:`jaxarm.arm.muscle`): the fibre ODE is stiff and kinked where a
+   tendon goes slack, and one 1 ms step of it chatters (see ``MusculoskeletalArmConfig.muscle_substeps``);
+3. the tendon forces averaged over those muscle steps times the moment arms give joint torques; beyond the joint
+   ranges a penalty spring-damper adds limit torques (the original's joint-limit force subsystem; MuJoCo's
+   constraint solver stays off);
 4. semi-implicit Euler on the skeleton with the mass matrix and velocity-product torques of the geometry backend,
    the limit damping taken implicitly.
 
@@ -147,11 +151,27 @@ class MusculoskeletalArm:
         spring = self._k_limit * (jnp.maximum(below, 0.0) - jnp.maximum(above, 0.0))
         return spring, jnp.where((below > 0) | (above > 0), self._b_limit, 0.0)
 
+    def _muscles(self, muscle: mus.MuscleState, e, lmt0, lmt_rate, h):
+        """``muscle_substeps`` steps of the muscles over ``h`` s along lmt0 + lmt_rate t (m, m/s). Returns the new
+        muscle state and the mean tendon force (N) over the steps (the impulse the skeleton receives)."""
+        k = self.config.muscle_substeps
+        hk = h / k
+
+        def body(carry, i):
+            ms, total = carry
+            lmt = lmt0 + lmt_rate * ((i + 1.0) * hk)
+            ms = mus.step(self.lane_params, ms, e, lmt, hk)
+            return (ms, total + mus.tendon_force(self.lane_params, ms.fiber_length_m, lmt)), None
+
+        (muscle, total), _ = jax.lax.scan(body, (muscle, jnp.zeros_like(lmt0)), jnp.arange(k, dtype=jnp.float32))
+        return muscle, total * (1.0 / k)
+
     def _substep(self, s: MusculoskeletalArmState, e, h) -> MusculoskeletalArmState:
         geo = self.geometry(s.q, s.qd)
         lmt = self._lanes(geo.mtu_length_m)
-        ms = mus.step(self.lane_params, s.muscle, e, lmt, h)
-        tendon = mus.tendon_force(self.lane_params, ms.fiber_length_m, lmt)[: self.n_muscles]
+        lmt_rate = self._lanes(-(geo.moment_arm_m @ s.qd))      # dL/dt = -(moment arm) . qd
+        ms, tendon = self._muscles(s.muscle, e, lmt, lmt_rate, h)
+        tendon = tendon[: self.n_muscles]
         spring, damping = self.joint_limit_torque(s.q, s.qd)
         tau = geo.moment_arm_m.T @ tendon + spring - geo.bias_nm
         # (M + h B) qd' = M qd + h tau: implicit limit damping B = diag(damping).

@@ -68,7 +68,15 @@ class MusculoskeletalArmConfig(_JointRanges):
     Attributes:
         dt_s: arm step, s. The original integrated at 0.1 ms inside 10 ms updates; 1 ms is the paper's figure and
             is what our linearly-implicit muscle step is tested stable at.
-        substeps: integration substeps per step (dt_s / substeps each).
+        substeps: integration substeps per step (dt_s / substeps each), of skeleton and muscles alike.
+        muscle_substeps: steps of the muscles' fibre-length ODE per (sub)step of the skeleton, along the path
+            lengths extrapolated linearly over the step (default 10: 0.1 ms, the authors' integrator step). The
+            fibre ODE is stiff (PECM1's tendon is 2.8 mm) and kinked (zero tendon force when slack): taken at
+            1 ms it chatters (PECM1's tendon force jumped between 0 and 2850 N from one step to the next) and over
+            1 s of smooth random excitation the arm's path was off by 13 deg (median of 20 inputs; 46 deg at most)
+            from a converged 0.05 ms run, and 1e-4 rad at the start moved it by 7 deg. With 10 the path is within
+            0.3 deg of the converged run and a 1e-4 rad start perturbation moves it by < 0.01 deg
+            (``python experiments/arm_convergence.py``).
         time_scale_s, activation1, activation2: defaults for the Schutte activation ODE where the .osim stores 0
             (all 22 muscles do; the authors' simulator used unpublished internal defaults). We use OpenSim's
             Schutte1993Muscle defaults (0.1 s, 7.667, 1.459854): the paper's tau = 100 ms scale, activation time
@@ -92,6 +100,7 @@ class MusculoskeletalArmConfig(_JointRanges):
 
     dt_s: float = 0.001
     substeps: int = 1
+    muscle_substeps: int = 10
     time_scale_s: float = 0.1
     activation1: float = 7.667
     activation2: float = 1.459854
@@ -107,6 +116,7 @@ class MusculoskeletalArmConfig(_JointRanges):
     def __post_init__(self):
         check_range(self, "dt_s", 1e-5, 0.005)
         check_range(self, "substeps", 1, 100, integer=True)
+        check_range(self, "muscle_substeps", 1, 100, integer=True)
         check_range(self, "time_scale_s", 0.001, 1.0)
         check_range(self, "activation1", 0.0, 100.0)
         check_range(self, "activation2", 0.01, 100.0)
