@@ -141,7 +141,8 @@ def test_capacity_counters_and_no_lost_spikes_30_networks(net):
     state = run(wirings, keys[30:], rates)   # 1 s each
     assert int(np.sum(wirings.out_overflow)) == 0
     assert int(np.sum(state.counters.lost_spikes)) == 0
-    assert int(np.sum(state.counters.extra_passes)) >= 0
+    if net.config.kernel == "native":   # delivers every spike where it lands: no lists, no extra passes
+        assert int(np.sum(state.counters.extra_passes)) == 0
 
 
 @pytest.mark.slow

@@ -34,8 +34,8 @@ class MetaParams:
     """Tuned metaparameters (float arrays; scalars, or with leading batch axes under ``vmap``).
 
     Attributes (original value in brackets):
-        max_w_scaling: maxw of I->X synapses is 3 x this [0.70]. No effect in the original run (I->X synapses
-            are not plastic), kept because the authors tuned it.
+        max_w_scaling: maxw of I->X synapses would be 3 x this [0.70]. No effect in the original run (I->X
+            synapses are not plastic) nor here; kept because the authors tuned it, so their sets load unchanged.
         learn_rate: wgain step ``inc`` of every plastic E->E and E->I synapse, dimensionless [0.040].
         plast_ee_maxw: soft upper bound of wgain on E->E synapses, in units of the initial weight [7.85].
         plast_ei_maxw: soft upper bound of wgain on E->I synapses [5.00].
@@ -87,11 +87,6 @@ class MetaParams:
         """``{name: float}`` (unbatched only), e.g. for results.json."""
         # str(float32) is the shortest repr that round-trips, so 0.7 stays 0.7 rather than 0.699999988.
         return {name: float(str(np.float32(getattr(self, name)))) for name in NAMES}
-
-    @property
-    def maxw_ix(self):
-        """maxw of I->X synapses, 3 x max_w_scaling (unused while I->X synapses are not plastic)."""
-        return 3.0 * self.max_w_scaling
 
 
 #: The original values (``main.hoc`` setPlastParams/setArmParams/train/test, spec §4-§7).
