@@ -32,7 +32,7 @@ from jaxarm.analysis.reach import reach_metrics
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, LoopConfig
-from jaxarm.network import NetworkConfig
+from jaxarm.network import Network, NetworkConfig
 from jaxarm.network.wiring import PATHWAYS
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
 from jaxarm.train import EpochSummary, Trained, make_train
@@ -75,10 +75,28 @@ class Run:
         return meta | self.network_meta()
 
     def network_meta(self) -> dict:
-        """The run's :data:`NETWORK_OPTIONS` that differ from NetworkConfig's defaults. Only those are recorded, so
-        folders written before the options existed still resume."""
+        """The run's :data:`NETWORK_OPTIONS` that differ from NetworkConfig's defaults (only those are recorded, so
+        folders written before the options existed still resume), and the kernel that runs the network: the native
+        and XLA kernels agree to float rounding, not bit for bit, so a run resumes only on the kernel it began on."""
         net, default = self.config.network, NetworkConfig()
-        return {k: getattr(net, k) for k in NETWORK_OPTIONS if getattr(net, k) != getattr(default, k)}
+        kernel = "native" if Network(net).uses_native_kernel else "xla"
+        return {k: getattr(net, k) for k in NETWORK_OPTIONS if getattr(net, k) != getattr(default, k)} | {
+            "kernel": kernel}
+
+    def check_resumable(self, saved: dict) -> None:
+        """Refuse to resume a checkpoint written by a different run (a folder from before the kernel was recorded
+        resumes on either kernel)."""
+        mine = self.meta()
+        if "kernel" not in saved:
+            mine.pop("kernel")
+        if saved.get("kernel", mine.get("kernel")) != mine.get("kernel"):
+            from jaxarm.network import native
+            raise SystemExit(f"{self.out / 'checkpoints'} was trained with the {saved['kernel']} network kernel and "
+                             f"this machine would continue with the {mine['kernel']} one ({native.status()}); the "
+                             "kernels agree to float rounding, not bit for bit: resume where the same kernel runs")
+        if saved != mine:
+            raise SystemExit(f"{self.out / 'checkpoints'} holds a different run ({saved}); "
+                             "use another --out or delete it")
 
     def check_capacity(self, lost_spikes, what: str, overflow=None) -> None:
         """Fail with the counts if any network lost a spike (a full spike list) or a synapse (a full delivery row):
@@ -112,9 +130,7 @@ class Run:
         with Checkpointer(self.out / "checkpoints") as ckpt:
             meta = ckpt.read_meta()
             if meta is not None:
-                if meta != self.meta():
-                    raise SystemExit(f"{self.out / 'checkpoints'} holds a different run ({meta}); "
-                                     "use another --out or delete it")
+                self.check_resumable(meta)
                 (carry, history), _ = ckpt.restore((carry, history))
                 done = int(ckpt.latest_step())
             t0 = time.perf_counter()

@@ -326,3 +326,66 @@ def test_a_run_that_loses_spikes_fails_with_the_counts(tmp_path):
     cfg = LoopConfig(arm="simple", network=net, task=TaskConfig(epochs=1, epoch_duration_s=0.1, test_duration_s=0.1))
     with pytest.raises(RuntimeError, match=r"training epoch 1: \d+ lost spikes in network\(s\) of seed 3 \(\d+\)"):
         Run(cfg, 2, 3, tmp_path / "lossy", MetaParams.original()).train(progress=False)
+
+
+def test_scaling_inside_the_loop_brings_a_grown_network_back_to_its_initial_total():
+    """One training interval from gains grown to 1.5 with scaling due: afterwards the network's weighted total
+    equals S0 (the learning step of the same interval, if any, comes first, so the total is exactly S0)."""
+    from jaxarm.learning import babbling as bab
+    from jaxarm.loop import ClosedLoop
+
+    loop = ClosedLoop(SMALL)
+    base, s0 = loop.scaling_tables
+    wiring = loop.net.make_wiring(jax.random.PRNGKey(0))
+    b0 = bab.init_babbling(loop.config.babbling)
+    state = loop.init(jax.random.PRNGKey(1), jnp.full((loop.net.layout.n_syn,), 1.5), b0, b0.rates_hz)
+    mp = MetaParams.from_dict({"syn_scaling_dt_ms": 1000.0})
+    for last, expect_scaled in ((-1000.0, True), (0.0, False)):   # due at t = 10 ms, or not
+        s = state._replace(last_scaling_ms=jnp.float32(last))
+        after, _ = jax.jit(lambda s: loop.interval(wiring, s, jax.random.PRNGKey(2), mp, learn=True))(s)
+        total = float(np.dot(base, np.asarray(after.net.wgain, np.float64)))
+        if expect_scaled:
+            assert total == pytest.approx(s0, rel=1e-5) and float(after.last_scaling_ms) == 10.0
+        else:
+            assert total > 1.4 * s0
+
+
+def test_native_and_xla_kernels_train_identically_and_babbling_switches():
+    """1.5 s of training of two networks with scaling every 1 s: both kernels give the same critic signals and the
+    same gains (they share model, state layout and noise stream), and the babbling pattern changes in the epoch."""
+    from jaxarm.network import NetworkConfig, native
+
+    if not native.available():
+        pytest.skip(f"native kernel unavailable: {native.status()}")
+    mp = MetaParams.from_dict({"syn_scaling_dt_ms": 1000.0})
+    keys = jnp.stack([jax.random.PRNGKey(i) for i in range(2)])
+    out = {}
+    for kernel in ("xla", "native"):
+        cfg = LoopConfig(arm="simple", network=NetworkConfig(kernel=kernel),
+                         task=TaskConfig(epochs=1, epoch_duration_s=1.5, test_duration_s=0.3))
+        out[kernel] = jax.jit(jax.vmap(make_train(cfg).train, in_axes=(0, None)))(keys, mp)
+    (tx, hx), (tn, hn) = out["xla"], out["native"]
+    np.testing.assert_array_equal(np.asarray(hx.rewards), np.asarray(hn.rewards))
+    np.testing.assert_array_equal(np.asarray(hx.punishments), np.asarray(hn.punishments))
+    assert int(np.sum(hx.rewards) + np.sum(hx.punishments)) > 5
+    np.testing.assert_allclose(np.asarray(tx.wgain), np.asarray(tn.wgain), rtol=1e-6, atol=1e-7)
+    assert float(np.abs(np.asarray(tx.wgain) - 1.0).max()) > 0.01
+    # babbling: the first pattern lasts 1000 ms, then a new duration and pattern are drawn at a critic moment
+    assert np.all(np.asarray(tn.babble.last_change_ms) >= 1000.0)
+
+
+def test_a_run_resumes_only_on_the_kernel_it_began_on(tmp_path):
+    from jaxarm.experiment import Run
+    from jaxarm.network import NetworkConfig, native
+
+    if not native.available():
+        pytest.skip(f"native kernel unavailable: {native.status()}")
+    mp = MetaParams.original()
+    task = TaskConfig(epochs=2, epoch_duration_s=0.2)
+    started = Run(LoopConfig(arm="simple", network=NetworkConfig(kernel="native"), task=task), 2, 0, tmp_path, mp)
+    started.train(progress=False, stop_after=1)
+    assert started.meta()["kernel"] == "native"
+    other = Run(LoopConfig(arm="simple", network=NetworkConfig(kernel="xla"), task=task), 2, 0, tmp_path, mp)
+    with pytest.raises(SystemExit, match="trained with the native network kernel .* continue with the xla one"):
+        other.train(progress=False)
+    assert started.train(progress=False)[3] == 1   # the same kernel resumes
