@@ -1,4 +1,6 @@
-"""The notebooks run: every code cell of each notebook, in order, in one namespace (slow: trains networks)."""
+"""The notebooks run: every code cell of each notebook, in order, in one namespace, at the smallest sizes
+(``JAXARM_NOTEBOOK_TINY=1``: the notebooks shrink their networks and durations and never read a ``runs/`` folder);
+their own ``assert`` statements check what they show."""
 import json
 from pathlib import Path
 
@@ -16,13 +18,19 @@ def test_notebook_is_valid_and_its_code_parses(path):
             compile("".join(cell["source"]), f"{path.name}", "exec")
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_notebook_runs(path):
+def test_notebook_runs_at_tiny_size(path, monkeypatch, tmp_path):
     import matplotlib
 
     matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    monkeypatch.setenv("JAXARM_NOTEBOOK_TINY", "1")
+    monkeypatch.chdir(tmp_path)          # self-contained: nothing to find in a runs/ folder
     namespace: dict = {}
-    for cell in json.loads(path.read_text())["cells"]:
-        if cell["cell_type"] == "code":
-            exec(compile("".join(cell["source"]), path.name, "exec"), namespace)
+    cells = [c for c in json.loads(path.read_text())["cells"] if c["cell_type"] == "code"]
+    assert cells
+    for i, cell in enumerate(cells):
+        exec(compile("".join(cell["source"]), f"{path.name}[{i}]", "exec"), namespace)
+    assert namespace["TINY"] is True
+    plt.close("all")
