@@ -208,55 +208,86 @@ class OsimModel:
 # ----------------------------------------------------------------------------------------------- parsing
 
 
+class OsimFormatError(ValueError):
+    """A .osim file this parser cannot read. The message is one line naming the file and the element at fault."""
+
+
+def _where(el: ET.Element) -> str:
+    """``<Tag name='x'>`` (or ``<Tag>``) for error messages."""
+    name = el.get("name")
+    return f"<{el.tag}>" if name is None else f"<{el.tag} name={name!r}>"
+
+
 def _text(el: Optional[ET.Element]) -> Optional[str]:
     return None if el is None or el.text is None else el.text.strip()
 
 
-def _floats(text: str) -> tuple[float, ...]:
-    return tuple(float(t) for t in text.split())
+def _floats(text: str, where: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(t) for t in text.split())
+    except ValueError:
+        raise OsimFormatError(f"{where}: expected numbers, got {text!r}") from None
 
 
-def _vec3(el: ET.Element, tag: str, default=(0.0, 0.0, 0.0)) -> tuple[float, float, float]:
+def _required_text(el: ET.Element, tag: str, where: str) -> str:
     t = _text(el.find(tag))
     if not t:
+        raise OsimFormatError(f"{where} has no <{tag}>")
+    return t
+
+
+def _required_floats(el: ET.Element, tag: str, where: str, count: Optional[int] = None) -> tuple[float, ...]:
+    """The numbers of a required child element; ``count``, when given, is how many it must hold."""
+    t = _required_text(el, tag, where)
+    v = _floats(t, f"{where} <{tag}>")
+    if count is not None and len(v) != count:
+        raise OsimFormatError(f"{where} <{tag}>: expected {count} number{'s' * (count != 1)}, got {t!r}")
+    return v
+
+
+def _vec3(el: ET.Element, tag: str, where: str, default=(0.0, 0.0, 0.0)) -> tuple[float, float, float]:
+    """An optional 3-vector (absent or empty: ``default``)."""
+    if not _text(el.find(tag)):
         return default
-    v = _floats(t)
-    if len(v) != 3:
-        raise ValueError(f"<{tag}> of {el.tag} {el.get('name')!r}: expected 3 numbers, got {t!r}")
-    return v  # type: ignore[return-value]
+    return _required_floats(el, tag, where, 3)  # type: ignore[return-value]
 
 
-def _scalar(el: ET.Element, tag: str) -> Optional[float]:
-    t = _text(el.find(tag))
-    return None if t is None or t == "" else float(t)
+def _scalar(el: ET.Element, tag: str, where: str) -> Optional[float]:
+    """An optional number (None when absent or empty)."""
+    if not _text(el.find(tag)):
+        return None
+    return _required_floats(el, tag, where, 1)[0]
 
 
-def _spline(el: Optional[ET.Element]) -> Optional[Spline]:
+def _spline(el: Optional[ET.Element], where: str) -> Optional[Spline]:
     if el is None:
         return None
+    where = f"{where} <{el.tag}>"
     sp = el.find("NaturalCubicSpline")
     if sp is None:
-        raise ValueError(f"<{el.tag}>: only NaturalCubicSpline curves are supported")
-    x, y = _floats(_text(sp.find("x"))), _floats(_text(sp.find("y")))
+        raise OsimFormatError(f"{where}: only NaturalCubicSpline curves are supported")
+    x, y = _required_floats(sp, "x", where), _required_floats(sp, "y", where)
     if len(x) != len(y):
-        raise ValueError(f"<{el.tag}>: {len(x)} x knots but {len(y)} y knots")
+        raise OsimFormatError(f"{where}: {len(x)} x knots but {len(y)} y knots")
     return Spline(x, y)
 
 
-def _parse_path(muscle_el: ET.Element) -> tuple[PathPoint, ...]:
+def _parse_path(muscle_el: ET.Element, where: str) -> tuple[PathPoint, ...]:
     pps = muscle_el.find("GeometryPath/PathPointSet/objects")
     if pps is None:
-        raise ValueError(f"muscle {muscle_el.get('name')!r} has no GeometryPath/PathPointSet")
+        raise OsimFormatError(f"{where} has no GeometryPath/PathPointSet")
     points = []
-    for p in pps:
+    for k, p in enumerate(pps):
+        # Point names need not be unique (the authors' file names several conditional points "default").
+        at = f"{where} path point #{k} {_where(p)}"
         if p.tag == "PathPoint":
-            points.append(PathPoint(p.get("name", ""), _text(p.find("body")), _vec3(p, "location")))
+            points.append(PathPoint(p.get("name", ""), _required_text(p, "body", at), _vec3(p, "location", at)))
         elif p.tag == "ConditionalPathPoint":
-            rng = _floats(_text(p.find("range")))
-            points.append(PathPoint(p.get("name", ""), _text(p.find("body")), _vec3(p, "location"),
-                                    coordinate=_text(p.find("coordinate")), range=(rng[0], rng[1])))
+            rng = _required_floats(p, "range", at, 2)
+            points.append(PathPoint(p.get("name", ""), _required_text(p, "body", at), _vec3(p, "location", at),
+                                    coordinate=_required_text(p, "coordinate", at), range=(rng[0], rng[1])))
         else:
-            raise ValueError(f"muscle {muscle_el.get('name')!r}: unsupported path point type <{p.tag}>")
+            raise OsimFormatError(f"{where}: unsupported path point type <{p.tag}>")
     return tuple(points)
 
 
@@ -265,12 +296,13 @@ def _muscle_defaults(root: ET.Element, kind: str) -> dict:
     out: dict = {}
     if d is None:
         return out
+    where = f"<defaults> {_where(d)}"
     for tag in MUSCLE_SCALARS:
-        v = _scalar(d, tag)
+        v = _scalar(d, tag, where)
         if v is not None:
             out[tag] = v
     for tag in MUSCLE_CURVES:
-        s = _spline(d.find(tag))
+        s = _spline(d.find(tag), where)
         if s is not None:
             out[tag] = s
     return out
@@ -278,57 +310,75 @@ def _muscle_defaults(root: ET.Element, kind: str) -> dict:
 
 def _parse_muscle(el: ET.Element, defaults: dict) -> Muscle:
     name = el.get("name")
+    where = f"muscle {name!r}"
     values, defaulted = {}, []
     for tag in MUSCLE_SCALARS:
-        v = _scalar(el, tag)
+        v = _scalar(el, tag, where)
         if v is None:
             if tag not in defaults:
-                raise ValueError(f"muscle {name!r} omits <{tag}> and <defaults> has none")
+                raise OsimFormatError(f"{where} omits <{tag}> and <defaults> has none")
             v, _ = defaults[tag], defaulted.append(tag)
         values[tag] = v
     for tag in MUSCLE_CURVES:
-        s = _spline(el.find(tag))
+        s = _spline(el.find(tag), where)
         if s is None:
             if tag not in defaults:
-                raise ValueError(f"muscle {name!r} omits <{tag}> and <defaults> has none")
+                raise OsimFormatError(f"{where} omits <{tag}> and <defaults> has none")
             s, _ = defaults[tag], defaulted.append(tag)
         values[tag] = s
-    return Muscle(name=name, kind=el.tag, path=_parse_path(el), defaulted=tuple(defaulted), **values)
+    return Muscle(name=name, kind=el.tag, path=_parse_path(el, where), defaulted=tuple(defaulted), **values)
 
 
 def _parse_transform_axes(sp: ET.Element, joint: str) -> tuple[TransformAxis, ...]:
     axes = []
     for ta in sp.findall("TransformAxis"):
+        where = f"joint {joint!r} {_where(ta)}"
         fn = ta.find("function")
         f = fn[0] if fn is not None and len(fn) else None
         coord = _text(ta.find("coordinates")) or None
         if f is None or f.tag == "Constant":
-            value = _scalar(f, "value") if f is not None else 0.0
-            axes.append(TransformAxis(ta.get("name"), _vec3(ta, "axis"), None, "constant", (value or 0.0,)))
+            value = _scalar(f, "value", where) if f is not None else 0.0
+            axes.append(TransformAxis(ta.get("name"), _vec3(ta, "axis", where), None, "constant", (value or 0.0,)))
         elif f.tag == "LinearFunction":
-            coefs = _floats(_text(f.find("coefficients")))
+            coefs = _required_floats(f, "coefficients", f"{where} <LinearFunction>", 2)
             if not coord or len(coord.split()) != 1:
-                raise ValueError(f"joint {joint!r} {ta.get('name')}: a LinearFunction needs exactly one coordinate")
-            axes.append(TransformAxis(ta.get("name"), _vec3(ta, "axis"), coord, "linear", coefs))
+                raise OsimFormatError(f"{where}: a LinearFunction needs exactly one coordinate")
+            axes.append(TransformAxis(ta.get("name"), _vec3(ta, "axis", where), coord, "linear", coefs))
         else:
-            raise ValueError(f"joint {joint!r} {ta.get('name')}: unsupported function <{f.tag}>")
+            raise OsimFormatError(f"{where}: unsupported function <{f.tag}>")
     return tuple(axes)
 
 
 def parse_osim(path: Optional[str | Path] = None) -> OsimModel:
-    """Parse an OpenSim 2.x/3.x model file (default: the authors' arm under ``../shared``)."""
+    """Parse an OpenSim 2.x/3.x model file (default: the authors' arm under ``../shared``).
+
+    Raises :class:`OsimFormatError` (a ValueError), one line naming the file and the element, for a file that is
+    not well-formed XML, lacks an element the model needs, holds a non-number where a number belongs, or refers to
+    a body or coordinate it does not define.
+    """
     path = Path(path) if path is not None else default_osim_path()
-    root = ET.parse(path).getroot()
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        raise OsimFormatError(f"{path}: not well-formed XML ({e})") from None
+    try:
+        return _parse_model(root, path)
+    except OsimFormatError as e:
+        raise OsimFormatError(f"{path}: {e}") from None
+
+
+def _parse_model(root: ET.Element, path: Path) -> OsimModel:
     model_el = root.find("Model")
     if model_el is None:
-        raise ValueError(f"{path}: no <Model> element")
+        raise OsimFormatError("no <Model> element")
 
     bodies, coordinates = [], []
     for b in model_el.findall("BodySet/objects/Body"):
         name = b.get("name")
+        where = f"body {name!r}"
         common = dict(
-            name=name, mass=_scalar(b, "mass") or 0.0, mass_center=_vec3(b, "mass_center"),
-            inertia=tuple(_scalar(b, f"inertia_{k}") or 0.0 for k in ("xx", "yy", "zz", "xy", "xz", "yz")),
+            name=name, mass=_scalar(b, "mass", where) or 0.0, mass_center=_vec3(b, "mass_center", where),
+            inertia=tuple(_scalar(b, f"inertia_{k}", where) or 0.0 for k in ("xx", "yy", "zz", "xy", "xz", "yz")),
         )
         joint_el = b.find("Joint")
         j = joint_el[0] if joint_el is not None and len(joint_el) else None
@@ -336,21 +386,24 @@ def parse_osim(path: Optional[str | Path] = None) -> OsimModel:
             bodies.append(Body(**common))
             continue
         if j.tag not in ("WeldJoint", "CustomJoint"):
-            raise ValueError(f"body {name!r}: unsupported joint type <{j.tag}>")
+            raise OsimFormatError(f"{where}: unsupported joint type <{j.tag}>")
+        jwhere = f"{where} joint {_where(j)}"
         coord_names = []
         for c in j.findall("CoordinateSet/objects/Coordinate"):
-            rng = _floats(_text(c.find("range")))
-            init = _scalar(c, "initial_value")
+            cwhere = f"{jwhere} {_where(c)}"
+            rng = _required_floats(c, "range", cwhere, 2)
             coordinates.append(Coordinate(
                 name=c.get("name"), joint=j.get("name"), motion_type=_text(c.find("motion_type")),
-                default_value=_scalar(c, "default_value") or 0.0, initial_value=init, range=(rng[0], rng[1]),
+                default_value=_scalar(c, "default_value", cwhere) or 0.0,
+                initial_value=_scalar(c, "initial_value", cwhere), range=(rng[0], rng[1]),
                 clamped=_text(c.find("clamped")) == "true"))
             coord_names.append(c.get("name"))
         sp = j.find("SpatialTransform")
         bodies.append(Body(
-            **common, parent=_text(j.find("parent_body")), joint_name=j.get("name"), joint_type=j.tag,
-            location_in_parent=_vec3(j, "location_in_parent"), orientation_in_parent=_vec3(j, "orientation_in_parent"),
-            location=_vec3(j, "location"), orientation=_vec3(j, "orientation"),
+            **common, parent=_required_text(j, "parent_body", jwhere), joint_name=j.get("name"), joint_type=j.tag,
+            location_in_parent=_vec3(j, "location_in_parent", jwhere),
+            orientation_in_parent=_vec3(j, "orientation_in_parent", jwhere),
+            location=_vec3(j, "location", jwhere), orientation=_vec3(j, "orientation", jwhere),
             transform_axes=_parse_transform_axes(sp, j.get("name")) if sp is not None else (),
             coordinates=tuple(coord_names)))
 
@@ -360,9 +413,37 @@ def parse_osim(path: Optional[str | Path] = None) -> OsimModel:
             continue
         muscles.append(_parse_muscle(m, _muscle_defaults(root, m.tag)))
 
-    grav = _vec3(model_el, "gravity")
+    _check_references(bodies, coordinates, muscles)
+    grav = _vec3(model_el, "gravity", "<Model>")
     return OsimModel(name=model_el.get("name"), gravity=grav, bodies=tuple(bodies), coordinates=tuple(coordinates),
                      muscles=tuple(muscles), source=str(path))
+
+
+def _check_references(bodies: list[Body], coordinates: list[Coordinate], muscles: list[Muscle]) -> None:
+    """Every body and coordinate a joint or path point names exists, and only one body (ground) has no joint.
+
+    Why here: a dangling name would otherwise surface as a KeyError deep inside the kinematics.
+    """
+    body_names, coord_names = {b.name for b in bodies}, {c.name for c in coordinates}
+    roots = [b.name for b in bodies if b.parent is None]
+    if len(roots) != 1:
+        raise OsimFormatError(f"expected exactly one body without a joint (ground), found {roots}")
+    for b in bodies:
+        if b.parent is not None and b.parent not in body_names:
+            raise OsimFormatError(f"body {b.name!r} joint <{b.joint_type} name={b.joint_name!r}>: "
+                                  f"parent_body {b.parent!r} is not a body of the model")
+        for ta in b.transform_axes:
+            if ta.coordinate is not None and ta.coordinate not in coord_names:
+                raise OsimFormatError(f"joint {b.joint_name!r} <TransformAxis name={ta.name!r}>: "
+                                      f"coordinate {ta.coordinate!r} is not a coordinate of the model")
+    for m in muscles:
+        for k, p in enumerate(m.path):
+            if p.body not in body_names:
+                raise OsimFormatError(f"muscle {m.name!r} path point #{k} {p.name!r}: "
+                                      f"body {p.body!r} is not a body of the model")
+            if p.coordinate is not None and p.coordinate not in coord_names:
+                raise OsimFormatError(f"muscle {m.name!r} path point #{k} {p.name!r}: "
+                                      f"coordinate {p.coordinate!r} is not a coordinate of the model")
 
 
 # ----------------------------------------------------------------------------------------------- kinematics
