@@ -389,3 +389,19 @@ def test_a_run_resumes_only_on_the_kernel_it_began_on(tmp_path):
     with pytest.raises(SystemExit, match="trained with the native network kernel .* continue with the xla one"):
         other.train(progress=False)
     assert started.train(progress=False)[3] == 1   # the same kernel resumes
+
+
+def test_trained_networks_reach_closer_than_their_naive_selves(tmp_path):
+    """The learning rule does its job: two networks of the shipped simple-arm preset trained 3 x 20 s come within
+    5 cm of the left target where their untrained selves stay 12-15 cm away (measured 1.5 and 5.0 cm vs 14.8 and
+    12.3 cm; with the critic's sign flipped both end at 15.1 cm, so this fails if rewards and punishments swap)."""
+    from jaxarm.evolve import presets
+    from jaxarm.experiment import Run
+
+    mp = MetaParams.from_dict(presets.load("simple-cmaes-left-shoulder").best)
+    cfg = LoopConfig(arm="simple", task=TaskConfig(target="left", epochs=3, epoch_duration_s=20.0))
+    run = Run(cfg, 2, 0, tmp_path, mp)
+    carry = run.train(progress=False)[0]
+    trained, naive = (np.asarray(run.test(t).min_distance_m) for t in (carry.trained, run.naive()))
+    assert np.all(naive > 0.10), naive
+    assert np.all(trained < 0.5 * naive) and trained.min() < 0.04, (trained, naive)

@@ -275,3 +275,20 @@ def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
                  "--dt-ms", "0.3", *TINY]) == 2
     assert "dt_ms = 0.3" in capsys.readouterr().err
 
+
+
+def test_musculoskeletal_reproduce_with_the_shipped_preset_then_retest(tmp_path):
+    """The headline path at tiny size: the shipped musculoskeletal preset, both modes, one target, then `jaxarm
+    test` re-tests the trained networks identically."""
+    out = tmp_path / "msarm"
+    assert main(["reproduce", "--arm", "musculoskeletal", "--preset", "msarm-cmaes-2cm-rerank", "--targets", "left",
+                 "--networks", "2", "--top", "2", "--epochs", "1", "--epoch-s", "0.3", "--test-s", "0.2",
+                 "--no-progress", "--out", str(out)]) == 0
+    row = json.loads((out / "success_table.json").read_text())["targets"]["left"]
+    assert (row["seeds_n"], row["top30_n"], row["paper"]) == (2, 2, 29)
+    seeds = json.loads((out / "left" / "seeds" / "results.json").read_text())
+    assert seeds["config"]["arm"] == "musculoskeletal" and seeds["config"]["metaparams"] == \
+        presets.load("msarm-cmaes-2cm-rerank").best
+    assert main(["test", "--from", str(out / "left" / "seeds"), "--test-s", "0.2"]) == 0
+    again = json.loads((out / "left" / "seeds" / "test" / "results.json").read_text())
+    assert again["networks"] == seeds["networks"]
