@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from jaxarm.robot.config import SafetyConfig, WamSimConfig
 from jaxarm.robot.exporter import (Trajectory, load_trajectory, packets, resample, save_trajectory_csv, simulate)
 from jaxarm.robot.protocol import decode
 from jaxarm.robot.synthetic import PAPER_DISPLACEMENT_DEG, peak_speed_deg_s, reach_trajectory
@@ -46,7 +47,8 @@ def test_packet_variants_carry_the_same_targets():
     ext, raw, wam = packets(g), packets(g, "raw"), packets(g, wam_joints=True)
     assert decode(ext[3]).seq == 3 and decode(ext[3]).t == pytest.approx(0.03)
     assert decode(raw[3]).seq is None and len(decode(wam[3]).angles) == 4
-    logs = [simulate(_traj(), timing="live", duration_s=1.0, fmt=f, wam_joints=w)
+    accept_raw = WamSimConfig(safety=SafetyConfig(accept_raw=True))     # the robot refuses raw packets by default
+    logs = [simulate(_traj(), accept_raw, timing="live", duration_s=1.0, fmt=f, wam_joints=w)
             for f, w in (("extended", False), ("raw", False), ("extended", True))]
     for log in logs[1:]:
         np.testing.assert_allclose(log.rows[:, 1:5], logs[0].rows[:, 1:5], atol=1e-12)
