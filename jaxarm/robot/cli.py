@@ -29,6 +29,13 @@ ACCEPT_RAW_HELP = (
     "(raw_refused)")
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (naming the flag or file), not the usage block."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _number(text: str) -> float:
     value = float(text)
     if not math.isfinite(value):
@@ -123,7 +130,7 @@ def _write_json(p: argparse.ArgumentParser, flag: str, path: Path, data: dict) -
 
 
 def wam_sim_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="jaxarm wam-sim", description=(
+    p = _Parser(prog="jaxarm wam-sim", description=(
         "Run the simulated Barrett WAM (MuJoCo, libbarrett-like 500 Hz chain) behind a UDP receiver and a safety "
         "envelope, paced to the wall clock, for --duration seconds; write a 500 Hz CSV log and print a JSON "
         "summary. SIGTERM or SIGINT end the run early and still write both (exit status 0)."))
@@ -187,7 +194,7 @@ def wam_sim_main(argv: list[str]) -> int:
 
 
 def export_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="jaxarm export", description=(
+    p = _Parser(prog="jaxarm export", description=(
         "Stream a joint trajectory (shoulder, elbow; rad) to a WAM over UDP, one packet per 10 ms of simulated "
         "time; or, with --to offline, run the simulated WAM in-process in simulated time; or, with --to "
         "rosbag2:DIR, write it as a ROS 2 bag (MCAP) without a ROS install."))
@@ -316,7 +323,7 @@ def _write_bag(p, flag, path, traj, config, jitter, timing, args, names, robot_l
     try:
         counts = write_bag(path, grid.t, q_wam, times[keep], q_wam[keep], names, robot_log=robot_log)
     except (OSError, ValueError) as err:
-        p.error(f"{flag} {path}: {err}")
+        p.error(f"{flag}: {err}")
     return {"path": str(path), "messages": counts, "joint_names": list(names)}
 
 

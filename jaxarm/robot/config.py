@@ -86,11 +86,12 @@ VALUES: dict[str, Sourced] = {
     # --- receiver robustness (jaxarm.robot.controller) -----------------------------------------------------------
     "max_reads_per_tick": Sourced(256, "datagrams", "own choice: ex11 drains the whole queue each tick; we read at "
                                                     "most this many per 2 ms tick so a flood cannot stall the loop "
-                                                    "(one read costs about 1 us; docs/robot.md)"),
+                                                    "(a read costs ~1.5 us: benchmarks/wam.py --receiver, "
+                                                    "docs/robot.md)"),
     "max_judged_per_tick": Sourced(16, "datagrams", "own choice: only the newest this many datagrams of a tick are "
-                                                    "judged (the older ones are counted flood_dropped); 16 judged "
-                                                    "cost well under 1 ms (docs/robot.md); a clean stream brings "
-                                                    "1 (at most 3 after a stall)"),
+                                                    "judged (older ones are counted flood_dropped); a flood tick "
+                                                    "(256 read, 16 judged) costs ~0.7 ms of the 2 ms tick, a clean "
+                                                    "stream brings 1 per tick (benchmarks/wam.py --receiver)"),
     # --- safety envelope (jaxarm.robot.safety; modelled on libbarrett's SafetyModule) ------------------------------
     "accept_raw": Sourced(False, "-", "issue 26: the headerless ex11 format (DOF x float64) is framed by length "
                                       "only, so any 16- or 32-byte datagram parses as a target (the 16 bytes "
@@ -105,7 +106,8 @@ VALUES: dict[str, Sourced] = {
                                     "own choice, measured: the fastest 10 ms step of the clean network streams of "
                                     "the tracking table is 7.3 rad/s (docs/robot.md), the chain commands at most "
                                     "pi rad/s; libbarrett's SafetyModule limits Cartesian speed instead "
-                                    "(setVelocityLimit, m/s; Barrett's default fault VL2 = 1.0 m/s)"),
+                                    "(setVelocityLimit, m/s; Barrett's default fault VL2 = 1.0 m/s at 350 mm from the "
+                                    "elbow: support.barrett.com wiki WAM/SafetyFeaturesPrecautions)"),
     "velocity_warning_fraction": Sourced(0.9, "-", "libbarrett src/products/safety_module.cpp setVelocityLimit: "
                                                    "warning = 0.9 x fault by default; here the speed at which the "
                                                    "velocity guard starts braking"),

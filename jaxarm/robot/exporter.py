@@ -59,7 +59,10 @@ def load_trajectory(source: str | Path, network: int = 0) -> Trajectory:
     text = str(source)
     if text == "synthetic" or text.startswith("synthetic:"):
         from jaxarm.robot.synthetic import reach_trajectory
-        seed = int(text.partition(":")[2] or 0)
+        seed_text = text.partition(":")[2] or "0"
+        if not seed_text.isdigit():
+            raise ValueError(f"{text!r}: synthetic:SEED needs a non-negative integer SEED")
+        seed = int(seed_text)
         return _check(*reach_trajectory(seed), text)
     path = Path(source)
     if path.is_dir():
