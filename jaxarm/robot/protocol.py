@@ -68,6 +68,12 @@ def encode_raw(angles) -> bytes:
     return struct.pack(f"<{len(angles)}d", *angles)
 
 
+def is_raw(data: bytes) -> bool:
+    """True when ``data`` would be read as a raw packet (16 or 32 bytes, not starting with the magic), whatever
+    its content."""
+    return len(data) in (8 * n for n in ANGLE_COUNTS) and data[:4] != MAGIC
+
+
 def decode(data: bytes) -> Packet:
     """Decode one datagram or raise :class:`DecodeError` saying why it is rejected."""
     if len(data) > MAX_PACKET_BYTES:

@@ -9,8 +9,9 @@ counted ``flood_dropped``, which bounds the work per tick under a flood while th
 Each judged datagram is accepted or rejected for exactly one reason, each with its own counter
 (:data:`REJECTION_KINDS`):
 
+* ``raw_refused``: a headerless libbarrett packet (any 16 or 32 bytes without the magic, whatever they hold)
+  while ``SafetyConfig.accept_raw`` is off (the default);
 * ``oversize`` / ``malformed`` / ``truncated`` / ``nonfinite``: decoding failed (:mod:`jaxarm.robot.protocol`);
-* ``raw_refused``: a headerless libbarrett packet while ``SafetyConfig.accept_raw`` is off (the default);
 * ``duplicate``: same sequence number as the held target;
 * ``out_of_order``: older sequence number than the held target (serial-number arithmetic mod 2**32, so the
   sequence wraps from 2**32 - 1 to 0 without a rejection);
@@ -38,7 +39,7 @@ import numpy as np
 
 from jaxarm.robot import safety
 from jaxarm.robot.config import WamSimConfig
-from jaxarm.robot.protocol import SEQ_MODULUS, DecodeError, decode
+from jaxarm.robot.protocol import SEQ_MODULUS, DecodeError, decode, is_raw
 
 #: Why a judged datagram was not used; each reason has its own counter, log column and summary entry.
 REJECTION_KINDS = ("oversize", "malformed", "truncated", "nonfinite", "raw_refused", "duplicate", "out_of_order",
@@ -103,13 +104,13 @@ def judge(config: WamSimConfig, env: safety.Envelope, state: ReceiverState, data
           now_s: float) -> tuple[ReceiverState, str]:
     """Judge one datagram arriving at robot time ``now_s`` (s); return the new state and the verdict (``"ok"``,
     ``"clamped"`` or one of :data:`REJECTION_KINDS`). Does not count ``received`` (:func:`receive` does)."""
+    raw = is_raw(data)
+    if raw and not config.safety.accept_raw:   # refused whatever it holds, before decoding
+        return _reject(state, "raw_refused")
     try:
         packet = decode(data)
     except DecodeError as err:
         return _reject(state, err.kind)
-    raw = packet.seq is None
-    if raw and not config.safety.accept_raw:
-        return _reject(state, "raw_refused")
     in_sequence = state.linked and state.seq is not None and not raw
     if in_sequence:
         diff = (packet.seq - state.seq) % SEQ_MODULUS
