@@ -7,7 +7,6 @@ import os
 import selectors
 import signal
 import socket
-import struct
 import subprocess
 import sys
 import threading
@@ -20,6 +19,7 @@ from jaxarm.cli import main as jaxarm_main
 from jaxarm.robot.cli import export_main
 from jaxarm.robot.config import PhysicsConfig, SafetyConfig
 from jaxarm.robot.exporter import Trajectory, save_trajectory_csv
+from jaxarm.robot.junk import junk_datagrams
 from jaxarm.robot.metrics import load_log, xcorr_delay
 from jaxarm.robot.protocol import encode, encode_raw
 from jaxarm.robot.simulator import LOG_COLUMNS, within_joint_range
@@ -141,16 +141,6 @@ def test_simulator_refuses_bad_options():
     assert out.returncode == 2 and "--duration" in out.stderr
 
 
-def _junk(n: int, seed: int = 0) -> list[bytes]:
-    """Issue 26's junk, in turn: random bytes (1-64), empty, NaN doubles, inf doubles, two doubles of +-1e9, a
-    4000-byte blob, an HTTP request line."""
-    rng = np.random.Generator(np.random.PCG64(seed))
-    kinds = [lambda: rng.bytes(int(rng.integers(1, 65))), lambda: b"",
-             lambda: struct.pack("<2d", math.nan, math.nan), lambda: struct.pack("<4d", math.inf, -math.inf, 0, 1),
-             lambda: struct.pack("<2d", 1e9, -1e9), lambda: rng.bytes(4000), lambda: b"GET / HTTP/1.1\r\n"]
-    return [kinds[k % len(kinds)]() for k in range(n)]
-
-
 def _expected_kind(d: bytes) -> str:
     """The rejection a junk datagram must get, from the wire-format rules (written out, not via the decoder)."""
     assert d[:4] != b"WAMJ"
@@ -168,7 +158,7 @@ def _stream(tmp_path, with_junk: bool):
     tmp_path.mkdir()
     save_trajectory_csv(tmp_path / "traj.csv", Trajectory(t, q))
     proc, port = _start_sim(tmp_path, 3.0)
-    junk = _junk(100) if with_junk else []
+    junk = [d for _, d in junk_datagrams(100)] if with_junk else []   # issue 26's kinds, in turn
     sent = []
 
     def send_junk():
