@@ -68,6 +68,7 @@ class ControlParams(NamedTuple):
     brake_accel: np.ndarray     # (4,) deceleration the guard counts on, rad/s^2
     brake_torque: np.ndarray    # (4,) torque both guards brake with, N m
     guard_speed: np.ndarray     # (4,) the velocity guard brakes above this speed, rad/s
+    guard_floor: float          # min(guard_speed), rad/s
 
 
 def control_params(config: WamSimConfig, max_inertia_kgm2=None, min_inertia_kgm2=None) -> ControlParams:
@@ -85,6 +86,8 @@ def control_params(config: WamSimConfig, max_inertia_kgm2=None, min_inertia_kgm2
         mask[:] = True
     i_max = arr(max_inertia_kgm2) if max_inertia_kgm2 is not None else np.full(4, 2.0)
     i_min = arr(min_inertia_kgm2) if min_inertia_kgm2 is not None else np.full(4, 0.05)
+    # The controller's torque is at most its control_signal_limit; gravity compensation cancels gravity.
+    guard = safety.guard_speed(safety.envelope(config), arr(c.jp_limit_nm), i_min)
     return ControlParams(
         period_s=t, gain_k=c.pos_to_vel_gain_per_s, v_max=c.pos_to_vel_limit_rad_s, chain_mask=mask,
         velocity_chain=c.mode == "velocity",
@@ -96,8 +99,7 @@ def control_params(config: WamSimConfig, max_inertia_kgm2=None, min_inertia_kgm2
         guard_hi=np.asarray(JOINT_RANGE_RAD, float)[:, 1] - GUARD_MARGIN_RAD,
         brake_accel=BRAKE_FRACTION * arr(c.jp_limit_nm) / i_max,
         brake_torque=arr(c.jp_limit_nm),
-        # The controller's torque is at most its control_signal_limit; gravity compensation cancels gravity.
-        guard_speed=safety.guard_speed(safety.envelope(config), arr(c.jp_limit_nm), i_min))
+        guard_speed=guard, guard_floor=float(guard.min()))
 
 
 def control_init(q0: np.ndarray) -> ControlState:
@@ -143,7 +145,8 @@ def control_step(p: ControlParams, s: ControlState, q: np.ndarray, target: np.nd
     stop = v * v / (2.0 * p.brake_accel) + np.abs(v) * 2.0 * p.period_s
     tau = np.where((v > 0) & (p.guard_hi - q <= stop), -p.brake_torque,
                    np.where((v < 0) & (q - p.guard_lo <= stop), p.brake_torque, tau))
-    return new_state, safety.velocity_guard(p.guard_speed, v if qd is None else qd, tau, p.brake_torque)
+    return new_state, safety.velocity_guard(p.guard_speed, p.guard_floor, v if qd is None else qd, tau,
+                                            p.brake_torque)
 
 
 def _chain(p, s, q, target, v_filt, ref, e_p, u_p, jp_int):
