@@ -90,8 +90,8 @@ VALUES: dict[str, Sourced] = {
                                                     "docs/robot.md)"),
     "max_judged_per_tick": Sourced(16, "datagrams", "own choice: only the newest this many datagrams of a tick are "
                                                     "judged (older ones are counted flood_dropped); a flood tick "
-                                                    "(256 read, 16 judged) costs ~0.7 ms of the 2 ms tick, a clean "
-                                                    "stream brings 1 per tick (benchmarks/wam.py --receiver)"),
+                                                    "(256 read, 16 judged) costs under 1 ms of the 2 ms tick, a "
+                                                    "clean stream brings 1 per tick (benchmarks/wam.py --receiver)"),
     # --- safety envelope (jaxarm.robot.safety; modelled on libbarrett's SafetyModule) ------------------------------
     "accept_raw": Sourced(False, "-", "issue 26: the headerless ex11 format (DOF x float64) is framed by length "
                                       "only, so any 16- or 32-byte datagram parses as a target (the 16 bytes "
