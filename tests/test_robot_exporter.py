@@ -63,3 +63,18 @@ def test_synthetic_stand_in_matches_paper_displacement_and_ranges():
     np.testing.assert_allclose(q[0], [0.62, 1.53])
     assert np.all(peak_speed_deg_s(t, q) > 60)                                # "velocities above 60 deg/s"
     np.testing.assert_array_equal(reach_trajectory(seed=4)[1], q)             # seeded
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("", "header must name t, shoulder and elbow"),
+    ("t,shoulder,elbow\n", "at least two samples"),
+    ("t,shoulder,elbow\n0,1\n0.1,1,1\n", "line 2"),
+    ("t,shoulder,elbow\n0,1,1\n0.1,nope,1\n", "line 3"),
+    ("t,shoulder,elbow\n0,1,1\n0.1,nan,1\n", "non-finite"),
+    ("t,shoulder,elbow\n0.1,1,1\n0,1,1\n", "strictly increasing"),
+])
+def test_bad_csv_files_say_what_and_where(tmp_path, text, needle):
+    (tmp_path / "bad.csv").write_text(text)
+    with pytest.raises(ValueError, match=needle) as err:
+        load_trajectory(tmp_path / "bad.csv")
+    assert "bad.csv" in str(err.value)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -121,6 +122,20 @@ def _config_or_exit(p: argparse.ArgumentParser, args) -> WamSimConfig:
         p.error(str(err))
 
 
+def _check_writable(p: argparse.ArgumentParser, flag: str, path: Path | None, directory: bool = False) -> None:
+    """Before a run, not after it: the folder that will hold ``path`` (or ``path`` itself, a directory to
+    create) can be created and written to."""
+    if path is None:
+        return
+    folder = path if directory else path.parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        p.error(f"{flag} {path}: cannot create {folder}: {err.strerror or err}")
+    if not os.access(folder, os.W_OK):
+        p.error(f"{flag} {path}: {folder} is not writable")
+
+
 def _write_json(p: argparse.ArgumentParser, flag: str, path: Path, data: dict) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -155,9 +170,8 @@ def wam_sim_main(argv: list[str]) -> int:
         p.error("--duration SECONDS is required (0 < SECONDS <= 86400)")
     if not 0 <= args.port < 65536:
         p.error(f"--port {args.port}: must be in 0..65535")
-    for flag, path in (("--log", args.log), ("--summary", args.summary)):
-        if path is not None and path.parent.exists() and not path.parent.is_dir():
-            p.error(f"{flag} {path}: {path.parent} is not a directory")
+    _check_writable(p, "--log", args.log)
+    _check_writable(p, "--summary", args.summary)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"wam-sim: warning: binding {args.host}, not loopback; anyone who can reach it can move the robot",
               file=sys.stderr)
@@ -265,6 +279,10 @@ def export_main(argv: list[str]) -> int:
             p.error("--format raw --to offline: the simulated robot refuses raw packets; add --accept-raw")
         if args.rosbag2 is not None and args.rosbag2.exists():
             p.error(f"--rosbag2 {args.rosbag2}: exists already; a rosbag2 is written to a new directory")
+        _check_writable(p, "--log", args.log)
+        _check_writable(p, "--report", args.report)
+        _check_writable(p, "--figures", args.figures, directory=True)
+        _check_writable(p, "--rosbag2", args.rosbag2)
         log = simulate(traj, config, timing=timing, seed=args.seed, duration_s=args.duration, jitter=jitter,
                        fmt=args.format, wam_joints=args.wam_joints, first_arrival_s=args.start_delay)
         from jaxarm.robot.metrics import tracking_report
