@@ -143,3 +143,21 @@ def test_raw_http_request_is_refused_and_with_accept_raw_rejected_as_out_of_rang
         assert accepted == 0 and getattr(state.counters, kind) == 1
         assert np.array_equal(state.target, Q0)
     assert decode(encode_raw([1e9, -1e9])).angles == (1e9, -1e9)            # decodes, then out of range
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(datagrams=st.lists(_datagram(), min_size=1, max_size=40), gaps=st.lists(st.floats(0.0, 0.1), min_size=40,
+       max_size=40), accept_raw=st.booleans(), mode=st.sampled_from(["velocity", "position"]))
+def test_simulated_robot_stays_in_its_limits_under_any_input(datagrams, gaps, accept_raw, mode):
+    from jaxarm.robot.config import ControllerConfig, PhysicsConfig
+    from jaxarm.robot.simulator import run_offline, within_joint_range
+
+    cfg = WamSimConfig(controller=ControllerConfig(mode=mode), safety=SafetyConfig(accept_raw=accept_raw))
+    arrivals = np.cumsum(gaps[:len(datagrams)])
+    log = run_offline(cfg, arrivals, datagrams, float(arrivals[-1]) + 0.5)
+    q, tau, qd = log.rows[:, 10:14], log.rows[:, 14:18], log.rows[:, 18:22]
+    assert np.all(np.isfinite(log.rows[:, 10:22])) and within_joint_range(q)
+    assert np.all(np.abs(tau) <= np.asarray(PhysicsConfig().torque_limit_nm) + 1e-9)
+    assert np.all(np.abs(qd) <= np.asarray(cfg.safety.velocity_limit_rad_s))
+    c = log.counters
+    assert c.received == len(datagrams) == c.ok + c.rejected + c.flood_dropped

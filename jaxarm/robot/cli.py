@@ -84,6 +84,9 @@ def _add_sim_options(p: argparse.ArgumentParser) -> None:
     s.add_argument("--velocity-limit", type=_per_joint, default=None, metavar="RAD_S",
                    help="joint speed limit, rad/s, one value or J1,J2,J3,J4: targets implying more are rejected "
                         f"(jump), the robot never moves faster (default {SafetyConfig().velocity_limit_rad_s[0]:g})")
+    s.add_argument("--velocity-warning-fraction", type=_number, default=None, metavar="F",
+                   help="the velocity guard brakes a joint faster than this fraction of its limit "
+                        f"(default {SafetyConfig().velocity_warning_fraction})")
     s.add_argument("--target-inset", type=_number, default=None, metavar="RAD",
                    help=f"targets stay this far inside the joint range, rad (default {SafetyConfig().target_inset_rad})")
     s.add_argument("--clamp-margin", type=_number, default=None, metavar="RAD",
@@ -109,7 +112,7 @@ def _sim_config(args) -> WamSimConfig:
                     stale_after_s=args.stale_after, max_reads_per_tick=args.max_reads_per_tick,
                     max_judged_per_tick=args.max_judged_per_tick)
     safety = _set(SafetyConfig(accept_raw=args.accept_raw), velocity_limit_rad_s=args.velocity_limit,
-                  target_inset_rad=args.target_inset, clamp_margin_rad=args.clamp_margin,
+                  velocity_warning_fraction=args.velocity_warning_fraction, target_inset_rad=args.target_inset, clamp_margin_rad=args.clamp_margin,
                   jump_clock_slack_s=args.jump_clock_slack, max_consecutive_rejections=args.max_rejections)
     physics = _set(PhysicsConfig(variant=args.variant), substeps=args.substeps)
     return WamSimConfig(controller=controller, receiver=receiver, safety=safety, physics=physics)
