@@ -17,9 +17,10 @@ Two trajectory sources, one per seed s:
 The trajectory is exported offline with the Gamma packet timing (jitter seed s) to the default simulated WAM
 (PosToVel K from jaxarm.robot.config, libbarrett wam4 jv chain, 500 Hz) for ``--duration`` s of robot time. Prints
 one JSON object: per-seed metrics, their mean, the paper's values, the ratio to the paper and whether each is
-within 25 %, the delay beside the paper's 312 ms with the explanation (wam.md §6), and the trajectory's joint
+within 25 %, the delay beside the paper's 312 ms with the explanation (wam.md §6), the trajectory's joint
 ranges and speeds beside the paper's description ("joint angles varied over 100 deg at angular velocities above
-60 deg/s").
+60 deg/s"), and per seed what the robot's safety envelope did with the packets (accepted, rejected by reason,
+holds).
 """
 from __future__ import annotations
 
@@ -98,7 +99,10 @@ def run_seed(seed: int, duration_s: float, config: WamSimConfig, traj: Trajector
     r["error_if_pure_312ms_lag_deg"] = {
         j: float(np.degrees(np.abs(cols[f"target_{j}"][lag:] - cols[f"target_{j}"][:-lag])).mean())
         for j in ("shoulder", "elbow")}
-    r["real_time_factor"] = log.summary()["real_time_factor"]
+    summary = log.summary()
+    r["real_time_factor"] = summary["real_time_factor"]
+    # What the robot's safety envelope made of the stream (jaxarm.robot.receiver counters; docs/robot.md).
+    r["packets"] = {k: v for k, v in summary["packets"].items() if v or k in ("ok", "rejected")}
     r["trajectory"] = describe(traj)
     return r, log
 
@@ -134,6 +138,7 @@ def summarise(per_seed: list[dict]) -> dict:
     out["samples"] = {"virtual": mean(("samples", "virtual")), "robot": mean(("samples", "robot")),
                       "paper_fig10": {"virtual": 3297, "robot": 24997}}
     out["dimensionless_jerk"] = {k: mean(("dimensionless_jerk", k)) for k in ("virtual", "robot")}
+    out["packets_per_seed"] = [r["packets"] for r in per_seed]
     out["trajectory"] = {j: {k: mean(("trajectory", j, k)) for k in per_seed[0]["trajectory"][j]}
                          for j in ("shoulder", "elbow")}
     out["trajectory"]["paper"] = "joint angles varied over 100 deg at angular velocities above 60 deg/s (§3.3)"

@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from jaxarm.robot.config import SafetyConfig, WamSimConfig
 from jaxarm.robot.exporter import (Trajectory, load_trajectory, packets, resample, save_trajectory_csv, simulate)
 from jaxarm.robot.protocol import decode
 from jaxarm.robot.synthetic import PAPER_DISPLACEMENT_DEG, peak_speed_deg_s, reach_trajectory
@@ -46,7 +47,8 @@ def test_packet_variants_carry_the_same_targets():
     ext, raw, wam = packets(g), packets(g, "raw"), packets(g, wam_joints=True)
     assert decode(ext[3]).seq == 3 and decode(ext[3]).t == pytest.approx(0.03)
     assert decode(raw[3]).seq is None and len(decode(wam[3]).angles) == 4
-    logs = [simulate(_traj(), timing="live", duration_s=1.0, fmt=f, wam_joints=w)
+    accept_raw = WamSimConfig(safety=SafetyConfig(accept_raw=True))     # the robot refuses raw packets by default
+    logs = [simulate(_traj(), accept_raw, timing="live", duration_s=1.0, fmt=f, wam_joints=w)
             for f, w in (("extended", False), ("raw", False), ("extended", True))]
     for log in logs[1:]:
         np.testing.assert_allclose(log.rows[:, 1:5], logs[0].rows[:, 1:5], atol=1e-12)
@@ -61,3 +63,18 @@ def test_synthetic_stand_in_matches_paper_displacement_and_ranges():
     np.testing.assert_allclose(q[0], [0.62, 1.53])
     assert np.all(peak_speed_deg_s(t, q) > 60)                                # "velocities above 60 deg/s"
     np.testing.assert_array_equal(reach_trajectory(seed=4)[1], q)             # seeded
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("", "header must name t, shoulder and elbow"),
+    ("t,shoulder,elbow\n", "at least two samples"),
+    ("t,shoulder,elbow\n0,1\n0.1,1,1\n", "line 2"),
+    ("t,shoulder,elbow\n0,1,1\n0.1,nope,1\n", "line 3"),
+    ("t,shoulder,elbow\n0,1,1\n0.1,nan,1\n", "non-finite"),
+    ("t,shoulder,elbow\n0.1,1,1\n0,1,1\n", "strictly increasing"),
+])
+def test_bad_csv_files_say_what_and_where(tmp_path, text, needle):
+    (tmp_path / "bad.csv").write_text(text)
+    with pytest.raises(ValueError, match=needle) as err:
+        load_trajectory(tmp_path / "bad.csv")
+    assert "bad.csv" in str(err.value)

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from jaxarm.robot.config import ControllerConfig, PhysicsConfig, ReceiverConfig, WamSimConfig
+from jaxarm.robot.config import ControllerConfig, PhysicsConfig, ReceiverConfig, SafetyConfig, WamSimConfig
 from jaxarm.robot.exporter import Trajectory, load_trajectory, packets, resample, send_times, simulate
 from jaxarm.robot.metrics import PAPER, total_displacement, tracking_report
 from jaxarm.robot.protocol import encode
@@ -38,13 +38,15 @@ def test_jitter_schedule_matches_paper_statistics():
 
 
 @pytest.mark.parametrize("mode", ["velocity", "position"])
-def test_robot_stays_in_joint_and_torque_limits_under_absurd_targets(mode):
-    # Full-range jumps every 50 ms plus far out-of-range targets: clamped, saturated, never outside the limits.
+def test_robot_stays_in_joint_velocity_and_torque_limits_with_the_envelope_opened_wide(mode):
+    # The robot's own guards, not the envelope: with the clamp margin at its widest and a 100 rad/s velocity limit
+    # the absurd targets below are clamped and followed; the joint-limit guard and saturation still hold.
     rng = np.random.Generator(np.random.PCG64(0))
     n = 60
-    angles = rng.uniform(-8, 8, size=(n, 2))
+    angles = rng.uniform(-3.5, 3.5, size=(n, 2))
     data = [encode(a, k, 0.05 * k) for k, a in enumerate(angles)]
-    cfg = WamSimConfig(controller=ControllerConfig(mode=mode))
+    wide = SafetyConfig(clamp_margin_rad=0.5, velocity_limit_rad_s=(100.0,) * 4)
+    cfg = WamSimConfig(controller=ControllerConfig(mode=mode), safety=wide)
     log = run_offline(cfg, 0.05 * np.arange(n), data, 3.5)
     q, tau = log.rows[:, 10:14], log.rows[:, 14:18]
     assert np.all(np.isfinite(log.rows[:, :9])) and within_joint_range(q)
@@ -52,7 +54,34 @@ def test_robot_stays_in_joint_and_torque_limits_under_absurd_targets(mode):
     # J1 and J4 carry (almost) no gravity here, so their torque is the controller's, within libbarrett's
     # control_signal_limit (+ the tiny gravity term from J2/J3 being off pi/2 by ~1e-5 rad).
     assert np.abs(tau[:, 0]).max() <= 25 + 1e-3 and np.abs(tau[:, 3]).max() <= 15 + 1e-3
-    assert log.counters.out_of_range > n // 2 and log.counters.ok == n
+    c = log.counters
+    assert c.clamped >= 10 and c.ok >= n // 2 and c.ok + c.out_of_range + c.jump == n
+
+
+@pytest.mark.parametrize("mode", ["velocity", "position"])
+def test_velocity_guard_holds_a_low_velocity_limit_under_full_range_jumps(mode):
+    # A 1.5 rad/s limit (below PosToVel's pi rad/s): full-range targets 1 s apart pass the jump check (1.5 rad/s x
+    # 1 s) and the controller chases them at full torque; the velocity guard keeps every joint under the limit.
+    limit = 1.5
+    targets = [(2.5, -0.8), (-0.1, 1.5), (2.5, -0.8), (-0.1, 1.2)]
+    data = [encode(a, k, 1.0 * k) for k, a in enumerate(targets)]
+    cfg = WamSimConfig(controller=ControllerConfig(mode=mode),
+                       safety=SafetyConfig(velocity_limit_rad_s=(limit,) * 4))
+    log = run_offline(cfg, 1.0 * np.arange(len(targets)), data, 4.0)
+    qd = log.rows[:, 18:22]
+    assert np.abs(qd).max() <= limit
+    assert np.abs(qd).max() > 0.8 * limit                               # it did move as fast as allowed
+    assert within_joint_range(log.rows[:, 10:14])
+
+
+def test_absurd_targets_are_rejected_and_the_robot_stays_on_its_last_good_target():
+    # Issue 26: out-of-range targets used to be clamped to the joint limit and followed.
+    good = encode([0.62, 1.53], 0, 0.0)
+    absurd = [encode([1e98, 1.53], 1, 0.01), encode([0.62, -7.0], 2, 0.02), encode([9.0, 9.0], 3, 0.03)]
+    log = run_offline(WamSimConfig(), np.array([0.0, 0.01, 0.02, 0.03]), [good] + absurd, 0.2)
+    assert log.counters.ok == 1 and log.counters.out_of_range == 3
+    np.testing.assert_allclose(log.rows[-1, 1:3], [0.62, 1.53])       # target unchanged
+    np.testing.assert_allclose(log.rows[-1, 3:5], [0.62, 1.53], atol=1e-3)
 
 
 def test_loss_and_silence_hold_without_nan():

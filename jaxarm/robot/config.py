@@ -83,6 +83,40 @@ VALUES: dict[str, Sourced] = {
     "joint_map": Sourced("shoulder->J1, elbow->J4, J2=J3=pi/2 held", "-",
                          "wam.md §1.3 (the paper does not say; J1 and J4 vertical => planar arm)"),
     "initial_virtual_rad": Sourced(START_POSTURE_RAD, "rad", "paper §2.3 start posture (0.62, 1.53)"),
+    # --- receiver robustness (jaxarm.robot.controller) -----------------------------------------------------------
+    "max_reads_per_tick": Sourced(256, "datagrams", "own choice: ex11 drains the whole queue each tick; we read at "
+                                                    "most this many per 2 ms tick so a flood cannot stall the loop "
+                                                    "(a read costs ~1.5 us: benchmarks/wam.py --receiver, "
+                                                    "docs/robot.md)"),
+    "max_judged_per_tick": Sourced(16, "datagrams", "own choice: only the newest this many datagrams of a tick are "
+                                                    "judged (older ones are counted flood_dropped); a flood tick "
+                                                    "(256 read, 16 judged) costs under 1 ms of the 2 ms tick, a "
+                                                    "clean stream brings 1 per tick (benchmarks/wam.py --receiver)"),
+    # --- safety envelope (jaxarm.robot.safety; modelled on libbarrett's SafetyModule) ------------------------------
+    "accept_raw": Sourced(False, "-", "issue 26: the headerless ex11 format (DOF x float64) is framed by length "
+                                      "only, so any 16- or 32-byte datagram parses as a target (the 16 bytes "
+                                      "'GET / HTTP/1.1\\r\\n' give ~1e98 rad); refused unless --accept-raw"),
+    "target_inset_rad": Sourced(0.05, "rad", "own choice (the receiver's former clamp margin): accepted targets "
+                                             "are kept this far inside the joint range (manual Table 6), clear of "
+                                             "the model's stops (0.02 rad inside)"),
+    "clamp_margin_rad": Sourced(0.05, "rad", "own choice: a target at most this far outside the allowed range "
+                                             "(joint range shrunk by target_inset_rad) is clamped and counted; "
+                                             "farther is a wrong unit, map or garbage and is rejected"),
+    "velocity_limit_rad_s": Sourced((10.0, 10.0, 10.0, 10.0), "rad/s",
+                                    "own choice, measured: the fastest 10 ms step of the clean network streams of "
+                                    "the tracking table is 7.3 rad/s (docs/robot.md), the chain commands at most "
+                                    "pi rad/s; libbarrett's SafetyModule limits Cartesian speed instead "
+                                    "(setVelocityLimit, m/s; Barrett's default fault VL2 = 1.0 m/s at 350 mm from the "
+                                    "elbow: support.barrett.com wiki WAM/SafetyFeaturesPrecautions)"),
+    "velocity_warning_fraction": Sourced(0.9, "-", "libbarrett src/products/safety_module.cpp setVelocityLimit: "
+                                                   "warning = 0.9 x fault by default; here the speed at which the "
+                                                   "velocity guard starts braking"),
+    "jump_clock_slack_s": Sourced(0.02, "s", "own choice: a sender's claimed elapsed time is trusted up to the "
+                                             "robot's own elapsed time plus this (packet jitter, paper: 95 % of "
+                                             "intervals 6-26 ms; 2 ms tick quantisation)"),
+    "max_consecutive_rejections": Sourced(10, "datagrams", "libbarrett examples/ex11_master_master.h "
+                                                           "NUM_MISSED_LIMIT = 10 (there: missed cycles before "
+                                                           "unlinking and holding)"),
 }
 
 
@@ -188,25 +222,70 @@ class ControllerConfig:
 
 @dataclass(frozen=True)
 class ReceiverConfig:
-    """The Network System: what the robot does with incoming packets.
+    """The Network System: what the robot does with incoming packets (the envelope is :class:`SafetyConfig`).
 
     timeout_s: no accepted packet for this long -> timeout (counted) and the link resets its sequence tracking.
     on_timeout: ``"hold_position"`` sets the target to where the robot is (ex11 / wam_node behaviour);
         ``"hold_target"`` keeps following the last received target.
-    limit_margin_rad: targets are clamped to each joint's range shrunk by this margin.
     stale_after_s: a packet whose simulated time is older than the held target's by more than this is stale.
+    max_reads_per_tick: datagrams read from the socket per 2 ms tick at most (the rest wait for the next tick).
+    max_judged_per_tick: of the datagrams of one tick, only the newest this many are judged; the older ones are
+        counted ``flood_dropped``. Bounds the work per tick under a flood; the newest valid packet still wins.
     """
 
     timeout_s: float = _v("receiver_timeout_s")
     on_timeout: str = "hold_position"
-    limit_margin_rad: float = 0.05
     stale_after_s: float = 0.0
+    max_reads_per_tick: int = _v("max_reads_per_tick")
+    max_judged_per_tick: int = _v("max_judged_per_tick")
 
     def __post_init__(self):
         check_range(self, "timeout_s", 0.004, 60.0)
         check_choice(self, "on_timeout", ("hold_position", "hold_target"))
-        check_range(self, "limit_margin_rad", 0.0, 0.5)
         check_range(self, "stale_after_s", 0.0, 10.0)
+        check_range(self, "max_reads_per_tick", 1, 100_000, integer=True)
+        check_range(self, "max_judged_per_tick", 1, 10_000, integer=True)
+        if self.max_judged_per_tick > self.max_reads_per_tick:
+            raise ConfigError(f"ReceiverConfig.max_judged_per_tick = {self.max_judged_per_tick}: must be <= "
+                              f"max_reads_per_tick ({self.max_reads_per_tick})")
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    """The safety envelope between the receiver and the controller (:mod:`jaxarm.robot.safety`).
+
+    Every default and its source is in :data:`VALUES` (``jaxarm wam-sim --print-config``).
+
+    accept_raw: accept headerless libbarrett-ex11 packets (unsafe: any 16- or 32-byte datagram parses).
+    target_inset_rad: accepted targets lie inside each joint's range shrunk by this, rad.
+    clamp_margin_rad: a target at most this far outside that allowed range is clamped (counted ``clamped``);
+        farther, it is rejected (``out_of_range``), rad.
+    velocity_limit_rad_s: per joint J1..J4, rad/s. A target whose distance from the last accepted one implies a
+        faster joint speed is rejected (``jump``); the robot's own joint speed never exceeds it (velocity guard).
+    velocity_warning_fraction: the velocity guard brakes a joint moving faster than this fraction of its limit.
+    jump_clock_slack_s: the elapsed time of the jump check is the sender's clock difference, but at most the
+        robot's own elapsed time plus this, s (so a forged timestamp cannot stretch it).
+    max_consecutive_rejections: this many rejected datagrams in a row -> hold position (counted
+        ``rejection_holds``).
+    """
+
+    accept_raw: bool = _v("accept_raw")
+    target_inset_rad: float = _v("target_inset_rad")
+    clamp_margin_rad: float = _v("clamp_margin_rad")
+    velocity_limit_rad_s: tuple = _v("velocity_limit_rad_s")
+    velocity_warning_fraction: float = _v("velocity_warning_fraction")
+    jump_clock_slack_s: float = _v("jump_clock_slack_s")
+    max_consecutive_rejections: int = _v("max_consecutive_rejections")
+
+    def __post_init__(self):
+        if not isinstance(self.accept_raw, bool):
+            raise ConfigError(f"SafetyConfig.accept_raw = {self.accept_raw!r}: must be True or False")
+        check_range(self, "target_inset_rad", 0.0, 0.5)
+        check_range(self, "clamp_margin_rad", 0.0, 0.5)
+        _check_per_joint(self, "velocity_limit_rad_s", 0.1, 100.0)
+        check_range(self, "velocity_warning_fraction", 0.5, 1.0)
+        check_range(self, "jump_clock_slack_s", 0.0, 1.0)
+        check_range(self, "max_consecutive_rejections", 1, 1_000_000, integer=True)
 
 
 @dataclass(frozen=True)
@@ -234,13 +313,14 @@ class WamSimConfig:
 
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     receiver: ReceiverConfig = field(default_factory=ReceiverConfig)
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     joint_map: JointMap = field(default_factory=JointMap)
     initial_virtual_rad: tuple = _v("initial_virtual_rad")
 
     def __post_init__(self):
         for name, kind in (("controller", ControllerConfig), ("receiver", ReceiverConfig),
-                           ("physics", PhysicsConfig), ("joint_map", JointMap)):
+                           ("safety", SafetyConfig), ("physics", PhysicsConfig), ("joint_map", JointMap)):
             if not isinstance(getattr(self, name), kind):
                 raise ConfigError(f"WamSimConfig.{name} = {getattr(self, name)!r}: must be a {kind.__name__}")
         _check_per_joint(self, "initial_virtual_rad", -math.pi, math.pi, n=2)
@@ -253,9 +333,9 @@ class WamSimConfig:
 
 
 def joint_limits(config: WamSimConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Allowed target range per WAM joint (joint range shrunk by the receiver's margin), rad."""
+    """Allowed target range per WAM joint (joint range shrunk by ``SafetyConfig.target_inset_rad``), rad."""
     rng = np.asarray(_v("joint_range_rad"), dtype=float)
-    m = config.receiver.limit_margin_rad
+    m = config.safety.target_inset_rad
     return rng[:, 0] + m, rng[:, 1] - m
 
 

@@ -1,40 +1,27 @@
-"""The libbarrett-like 500 Hz chain: Network System (receiver), PosToVel, jv loop / jp PID.
+"""The libbarrett-like 500 Hz chain: PosToVel, jv loop / jp PID, and the guards after it.
 
-Everything here is a pure function of (config, state, inputs) returning a new state; states are NamedTuples of
+Everything here is a pure function of (params, state, inputs) returning a new state; states are NamedTuples of
 NumPy arrays and plain numbers. The chain runs in the simulator's own process, one call per 2 ms tick, beside the
 MuJoCo C model, so it is NumPy on 4-vectors rather than JAX (a per-tick JAX dispatch would cost more than the
-physics). Units: rad, rad/s, N m, s.
+physics). Units: rad, rad/s, N m, s. Its input, the target, comes from the Network System
+(:mod:`jaxarm.robot.receiver`) through the safety envelope (:mod:`jaxarm.robot.safety`).
 
-Receiver semantics (libbarrett ``ex11_master_master.h``, wam.md §4): every tick the socket is drained and each
-datagram judged in arrival order; the newest accepted one sets the target. Verdicts:
+After the chain come two guards (not libbarrett: they stand in for the WAM's mechanical stops and safety board):
 
-* ``malformed`` / ``truncated`` / ``nonfinite``: decoding failed (see :mod:`jaxarm.robot.protocol`); dropped.
-* ``duplicate``: same sequence number as the held target; dropped.
-* ``out_of_order``: older sequence number than the held target (serial-number arithmetic mod 2**32); dropped.
-* ``stale``: newer sequence number but a simulated time older than the held target's by more than
-  ``ReceiverConfig.stale_after_s`` (content older than what the robot follows, e.g. a replayed or restarted
-  sender); dropped.
-* ``out_of_range``: decoded and in sequence but outside the joint range: clamped into the range (shrunk by
-  ``limit_margin_rad``), counted, and accepted.
-* accepted packets count as ``ok``; accepted packets overtaken within the same tick also count as ``superseded``.
-  A raw packet (no sequence number) is judged on its content only and clears the sequence tracking.
-
-No accepted packet for ``timeout_s`` -> one ``timeouts`` count, the link forgets its sequence tracking (the next
-valid packet is accepted whatever its number, as after a sender restart) and, with ``on_timeout="hold_position"``,
-the target becomes the robot's current position.
-
-After the chain, a joint-limit guard (not libbarrett: it stands in for the WAM's mechanical stops and safety
-module) brakes a joint at full control torque when its stopping distance reaches the distance to its range limit.
-It never acts on a trajectory inside the task's ranges; it keeps absurd targets and jumps from driving a joint out.
+* joint-limit guard: brakes a joint at full control torque when its stopping distance reaches the distance to its
+  range limit. It never acts on a trajectory inside the task's ranges; it keeps absurd targets and jumps from
+  driving a joint out.
+* velocity guard (:func:`jaxarm.robot.safety.velocity_guard`): brakes a joint moving faster than the warning
+  fraction of ``SafetyConfig.velocity_limit_rad_s``.
 """
 from __future__ import annotations
 
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import numpy as np
 
-from jaxarm.robot.config import WamSimConfig, joint_limits
-from jaxarm.robot.protocol import SEQ_MODULUS, DecodeError, decode
+from jaxarm.robot import safety
+from jaxarm.robot.config import WamSimConfig
 from jaxarm.robot.wam_model import JOINT_RANGE_RAD
 
 #: Joint-limit guard (not libbarrett; stands in for the WAM's mechanical stops and safety module): the range it keeps
@@ -44,92 +31,6 @@ GUARD_MARGIN_RAD = 0.01
 #: centrifugal torques of the other joints: up to ~10 N m on J1 while J4 brakes). The model's joint stops
 #: (wam_model.STOP_INSET_RAD) catch what is left.
 BRAKE_FRACTION = 0.4
-
-BAD_KINDS = ("malformed", "truncated", "nonfinite", "stale", "duplicate", "out_of_order")
-
-
-class Counters(NamedTuple):
-    ok: int = 0
-    malformed: int = 0
-    truncated: int = 0
-    nonfinite: int = 0
-    stale: int = 0
-    duplicate: int = 0
-    out_of_order: int = 0
-    out_of_range: int = 0
-    superseded: int = 0
-    timeouts: int = 0
-
-    @property
-    def bad(self) -> int:
-        return sum(getattr(self, k) for k in BAD_KINDS)
-
-
-class ReceiverState(NamedTuple):
-    target: np.ndarray               # (4,) WAM joint target, rad
-    seq: Optional[int]               # sequence number of the held target (None: unlinked or raw)
-    t: Optional[float]               # sender's simulated time of the held target, s
-    last_accept_s: Optional[float]   # robot time of the last accepted packet (None: never)
-    linked: bool                     # a packet was accepted and no timeout since
-    counters: Counters
-
-
-def receiver_init(target: np.ndarray) -> ReceiverState:
-    return ReceiverState(np.asarray(target, dtype=float).copy(), None, None, None, False, Counters())
-
-
-def _count(c: Counters, kind: str, n: int = 1) -> Counters:
-    return c._replace(**{kind: getattr(c, kind) + n})
-
-
-def judge(config: WamSimConfig, state: ReceiverState, data: bytes) -> tuple[ReceiverState, str]:
-    """Judge one datagram; return the new state and the verdict (``"ok"``, ``"out_of_range"`` or a bad kind)."""
-    c = state.counters
-    try:
-        packet = decode(data)
-    except DecodeError as err:
-        return state._replace(counters=_count(c, err.kind)), err.kind
-    if packet.seq is not None and state.linked and state.seq is not None:
-        diff = (packet.seq - state.seq) % SEQ_MODULUS
-        if diff == 0:
-            return state._replace(counters=_count(c, "duplicate")), "duplicate"
-        if diff >= SEQ_MODULUS // 2:
-            return state._replace(counters=_count(c, "out_of_order")), "out_of_order"
-        if state.t is not None and packet.t < state.t - config.receiver.stale_after_s:
-            return state._replace(counters=_count(c, "stale")), "stale"
-    angles = np.asarray(packet.angles, dtype=float)
-    target = config.joint_map.to_wam(angles) if angles.size == 2 else angles
-    lo, hi = joint_limits(config)
-    clamped = np.clip(target, lo, hi)
-    verdict = "ok"
-    c = _count(c, "ok")
-    if np.any(clamped != target):
-        verdict = "out_of_range"
-        c = _count(c, "out_of_range")
-    return ReceiverState(clamped, packet.seq, packet.t, state.last_accept_s, True, c), verdict
-
-
-def receive(config: WamSimConfig, state: ReceiverState, datagrams, now_s: float,
-            q: np.ndarray) -> tuple[ReceiverState, int]:
-    """One tick of the Network System: judge every datagram that arrived since the last tick, keep the newest
-    accepted target, handle timeouts. Returns the new state and the number of packets accepted this tick."""
-    accepted = 0
-    for data in datagrams:
-        state, verdict = judge(config, state, data)
-        accepted += verdict in ("ok", "out_of_range")
-    if accepted:
-        c = state.counters
-        if accepted > 1:
-            c = _count(c, "superseded", accepted - 1)
-        return state._replace(last_accept_s=now_s, counters=c), accepted
-    if state.linked and now_s - state.last_accept_s >= config.receiver.timeout_s - 1e-12:
-        target = state.target
-        if config.receiver.on_timeout == "hold_position":
-            lo, hi = joint_limits(config)
-            target = np.clip(np.asarray(q, dtype=float), lo, hi)
-        state = state._replace(target=target, seq=None, t=None, linked=False,
-                               counters=_count(state.counters, "timeouts"))
-    return state, 0
 
 
 class ControlState(NamedTuple):
@@ -165,13 +66,17 @@ class ControlParams(NamedTuple):
     guard_lo: np.ndarray        # (4,) joint-limit guard: lower / upper range it never lets the joint pass, rad
     guard_hi: np.ndarray
     brake_accel: np.ndarray     # (4,) deceleration the guard counts on, rad/s^2
-    brake_torque: np.ndarray    # (4,) torque it brakes with, N m
+    brake_torque: np.ndarray    # (4,) torque both guards brake with, N m
+    guard_speed: np.ndarray     # (4,) the velocity guard brakes above this speed, rad/s
+    guard_floor: float          # min(guard_speed), rad/s
 
 
-def control_params(config: WamSimConfig, max_inertia_kgm2=None) -> ControlParams:
-    """Per-joint arrays for :func:`control_step`. ``max_inertia_kgm2`` (4,) is the largest diagonal of the joint
-    mass matrix (armature included) over the reachable poses; the simulator passes its model's, and without it the
-    joint-limit guard assumes 2 kg m^2 (more than any WAM joint but J1 of the 7-DOF arm)."""
+def control_params(config: WamSimConfig, max_inertia_kgm2=None, min_inertia_kgm2=None) -> ControlParams:
+    """Per-joint arrays for :func:`control_step`. ``max_inertia_kgm2`` and ``min_inertia_kgm2`` (4,) are the largest
+    and smallest diagonal of the joint mass matrix (armature included) over the reachable poses; the simulator
+    passes its model's. Without them the joint-limit guard assumes 2 kg m^2 (more than any WAM joint but J1 of the
+    7-DOF arm) and the velocity guard 0.05 kg m^2 (less than any WAM joint's armature but J4's 0.0346 plus its
+    link)."""
     c = config.controller
     t = c.control_period_s
     arr = lambda v: np.asarray(v, dtype=float)  # noqa: E731
@@ -179,6 +84,10 @@ def control_params(config: WamSimConfig, max_inertia_kgm2=None) -> ControlParams
     mask[[config.joint_map.shoulder_joint, config.joint_map.elbow_joint]] = True
     if c.held_joints == "chain" or c.mode == "position":
         mask[:] = True
+    i_max = arr(max_inertia_kgm2) if max_inertia_kgm2 is not None else np.full(4, 2.0)
+    i_min = arr(min_inertia_kgm2) if min_inertia_kgm2 is not None else np.full(4, 0.05)
+    # The controller's torque is at most its control_signal_limit; gravity compensation cancels gravity.
+    guard = safety.guard_speed(safety.envelope(config), arr(c.jp_limit_nm), i_min)
     return ControlParams(
         period_s=t, gain_k=c.pos_to_vel_gain_per_s, v_max=c.pos_to_vel_limit_rad_s, chain_mask=mask,
         velocity_chain=c.mode == "velocity",
@@ -188,9 +97,9 @@ def control_params(config: WamSimConfig, max_inertia_kgm2=None) -> ControlParams
         rate_step=c.rate_limit_rad_s * t,
         guard_lo=np.asarray(JOINT_RANGE_RAD, float)[:, 0] + GUARD_MARGIN_RAD,
         guard_hi=np.asarray(JOINT_RANGE_RAD, float)[:, 1] - GUARD_MARGIN_RAD,
-        brake_accel=BRAKE_FRACTION * arr(c.jp_limit_nm) / (arr(max_inertia_kgm2) if max_inertia_kgm2 is not None
-                                                            else np.full(4, 2.0)),
-        brake_torque=arr(c.jp_limit_nm))
+        brake_accel=BRAKE_FRACTION * arr(c.jp_limit_nm) / i_max,
+        brake_torque=arr(c.jp_limit_nm),
+        guard_speed=guard, guard_floor=float(guard.min()))
 
 
 def control_init(q0: np.ndarray) -> ControlState:
@@ -217,10 +126,11 @@ def _clip(x, limit):
     return np.minimum(np.maximum(x, -limit), limit)
 
 
-def control_step(p: ControlParams, s: ControlState, q: np.ndarray,
-                 target: np.ndarray) -> tuple[ControlState, np.ndarray]:
+def control_step(p: ControlParams, s: ControlState, q: np.ndarray, target: np.ndarray,
+                 qd: np.ndarray | None = None) -> tuple[ControlState, np.ndarray]:
     """One 2 ms tick: measured joint positions ``q`` and the receiver's ``target`` (rad) -> controller torque (N m),
-    before gravity compensation (added by the model, as libbarrett adds it in ``jtSum``)."""
+    before gravity compensation (added by the model, as libbarrett adds it in ``jtSum``). ``qd``: the measured
+    joint velocity (rad/s) the velocity guard reads; default the finite difference of ``q`` over the tick."""
     v_filt = lowpass(s.v_filt, (q - s.q_prev) / p.period_s, p.vf_wt)
     # jp PID: holds the joints outside the chain (and is the chain in position mode).
     ref = target
@@ -235,7 +145,8 @@ def control_step(p: ControlParams, s: ControlState, q: np.ndarray,
     stop = v * v / (2.0 * p.brake_accel) + np.abs(v) * 2.0 * p.period_s
     tau = np.where((v > 0) & (p.guard_hi - q <= stop), -p.brake_torque,
                    np.where((v < 0) & (q - p.guard_lo <= stop), p.brake_torque, tau))
-    return new_state, tau
+    return new_state, safety.velocity_guard(p.guard_speed, p.guard_floor, v if qd is None else qd, tau,
+                                            p.brake_torque)
 
 
 def _chain(p, s, q, target, v_filt, ref, e_p, u_p, jp_int):

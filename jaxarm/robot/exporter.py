@@ -59,7 +59,10 @@ def load_trajectory(source: str | Path, network: int = 0) -> Trajectory:
     text = str(source)
     if text == "synthetic" or text.startswith("synthetic:"):
         from jaxarm.robot.synthetic import reach_trajectory
-        seed = int(text.partition(":")[2] or 0)
+        seed_text = text.partition(":")[2] or "0"
+        if not seed_text.isdigit():
+            raise ValueError(f"{text!r}: synthetic:SEED needs a non-negative integer SEED")
+        seed = int(seed_text)
         return _check(*reach_trajectory(seed), text)
     path = Path(source)
     if path.is_dir():
@@ -83,12 +86,21 @@ def load_trajectory(source: str | Path, network: int = 0) -> Trajectory:
         return _check(t, q, str(path))
     with open(path, newline="") as f:
         reader = csv.reader(f)
-        header = [h.strip().lower() for h in next(reader)]
+        header = [h.strip().lower() for h in next(reader, [])]
         try:
             idx = [header.index(k) for k in ("t", "shoulder", "elbow")]
         except ValueError:
             raise ValueError(f"{path}: the CSV header must name t, shoulder and elbow; got {header}") from None
-        rows = np.asarray([[float(r[i]) for i in idx] for r in reader if r], dtype=float)
+        rows = []
+        for line, r in enumerate(reader, start=2):
+            if not r:
+                continue
+            try:
+                rows.append([float(r[i]) for i in idx])
+            except (IndexError, ValueError):
+                raise ValueError(f"{path}, line {line}: expected numbers in columns t, shoulder, elbow; "
+                                 f"got {r}") from None
+    rows = np.asarray(rows, dtype=float).reshape(-1, 3)
     return _check(rows[:, 0], rows[:, 1:], str(path))
 
 

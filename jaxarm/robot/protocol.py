@@ -13,7 +13,11 @@ Extended packet (what :mod:`jaxarm.robot.exporter` sends by default), little-end
 Raw packet (libbarrett ``ex11_master_master.h`` style): ``n`` consecutive little-endian float64 and nothing else,
 n = 2 (virtual arm) or n = 4 (WAM joints). It carries no sequence number or time, so duplicates, reordering and
 staleness cannot be detected for it. A raw packet is recognised by its size (16 or 32 bytes) when it does not
-start with the magic.
+start with the magic. Length is its only framing, so any 16- or 32-byte datagram decodes as one (the 16 bytes
+``GET / HTTP/1.1\r\n`` give angles of about 1e98 rad); the robot refuses raw packets unless told otherwise
+(:class:`~jaxarm.robot.config.SafetyConfig`).
+
+A datagram longer than the largest valid packet (:data:`MAX_PACKET_BYTES`) is ``oversize`` whatever it holds.
 """
 from __future__ import annotations
 
@@ -26,6 +30,8 @@ VERSION = 1
 HEADER = struct.Struct("<4sHHId")
 ANGLE_COUNTS = (2, 4)
 SEQ_MODULUS = 2 ** 32
+#: The largest valid packet: an extended packet with 4 angles, bytes.
+MAX_PACKET_BYTES = HEADER.size + 8 * max(ANGLE_COUNTS)
 
 
 class Packet(NamedTuple):
@@ -37,7 +43,8 @@ class Packet(NamedTuple):
 
 
 class DecodeError(ValueError):
-    """A packet could not be decoded; ``kind`` is ``"malformed"``, ``"truncated"`` or ``"nonfinite"``."""
+    """A packet could not be decoded; ``kind`` is ``"oversize"``, ``"malformed"``, ``"truncated"`` or
+    ``"nonfinite"``."""
 
     def __init__(self, kind: str, message: str):
         super().__init__(message)
@@ -61,8 +68,16 @@ def encode_raw(angles) -> bytes:
     return struct.pack(f"<{len(angles)}d", *angles)
 
 
+def is_raw(data: bytes) -> bool:
+    """True when ``data`` would be read as a raw packet (16 or 32 bytes, not starting with the magic), whatever
+    its content."""
+    return len(data) in (8 * n for n in ANGLE_COUNTS) and data[:4] != MAGIC
+
+
 def decode(data: bytes) -> Packet:
     """Decode one datagram or raise :class:`DecodeError` saying why it is rejected."""
+    if len(data) > MAX_PACKET_BYTES:
+        raise DecodeError("oversize", f"{len(data)} bytes, longer than the largest packet ({MAX_PACKET_BYTES})")
     if data[:4] == MAGIC:
         if len(data) < HEADER.size:
             raise DecodeError("truncated", f"{len(data)} bytes, shorter than the {HEADER.size}-byte header")
