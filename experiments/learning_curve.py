@@ -49,15 +49,14 @@ def curve_for_target(arm: str, target: str, mp, epochs: int, n: int, seed: int, 
     import jax
 
     from jaxarm.checkpoint import Checkpointer
-    from jaxarm.experiment import _compiled, network_keys
     from jaxarm.loop import LoopConfig
+    from jaxarm.run import Run
     from jaxarm.task.config import START_POSTURE_RAD, TaskConfig
 
     config = LoopConfig(arm=arm, task=TaskConfig(target=target, epochs=epochs, epoch_duration_s=epoch_s))
-    _, init_fn, epoch_fn, test_fn = _compiled(config)
-    keys = network_keys(seed, n)
-    test_keys = jax.vmap(lambda k: jax.random.fold_in(k, 7))(keys)   # jaxarm train's test keys (Run.test)
-    carry = init_fn(keys)
+    run = Run(config, n, seed, out, mp)        # jaxarm train's networks, keys and test
+    mps, targets = run.batched_inputs()
+    carry = run.init_fn(run.keys())
     rows: list[dict] = []
     meta = {"arm": arm, "target": target, "networks": n, "seed": seed, "epoch_s": epoch_s, "metaparams": mp.to_dict()}
     with Checkpointer(out / "checkpoints" / target) as ckpt:
@@ -69,13 +68,14 @@ def curve_for_target(arm: str, target: str, mp, epochs: int, n: int, seed: int, 
             (carry,), _ = ckpt.restore((carry,))
             done, rows = int(ckpt.latest_step()), saved["rows"]
         if done == 0:
-            rows = [dict(epoch=0, **summarize(test_fn(test_keys, carry.trained, mp), START_POSTURE_RAD),
+            rows = [dict(epoch=0, **summarize(run.test(carry.trained), START_POSTURE_RAD),
                          rewards_mean=None, punishments_mean=None)]
         t0 = time.perf_counter()
         last = epochs if stop_after is None else min(epochs, done + stop_after)
         for e in range(done, last):
-            carry, summary = epoch_fn(carry, mp)
-            row = dict(epoch=e + 1, **summarize(test_fn(test_keys, carry.trained, mp), START_POSTURE_RAD),
+            carry, summary = run.epoch_fn(carry, mps, targets)
+            summary = jax.tree.map(lambda x: np.asarray(x)[:n], summary)
+            row = dict(epoch=e + 1, **summarize(run.test(carry.trained), START_POSTURE_RAD),
                        rewards_mean=round(float(np.mean(summary.rewards)), 2),
                        punishments_mean=round(float(np.mean(summary.punishments)), 2))
             rows.append(row)

@@ -47,7 +47,8 @@ def loop_config(arm: str, target: str, change: str, epochs: int | None = None):
 
 def main(argv=None) -> int:
     from jaxarm.evolve import presets
-    from jaxarm.experiment import Run, write_outputs
+    from jaxarm.experiment import write_outputs
+    from jaxarm.run import Run
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--preset", required=True, help="preset name or .json path; its best set is trained")

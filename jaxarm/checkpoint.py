@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
+from jax.sharding import NamedSharding
 
 
 #: Name of the integrity manifest in every step folder.
@@ -78,11 +79,17 @@ class Checkpointer:
         return self._manager.latest_step()
 
     def save(self, step: int, state, meta: dict) -> None:
-        """Save (blocking: the checkpoint is complete on return)."""
+        """Save (blocking: the checkpoint is complete on return). With several processes every one calls this with
+        its shards of the global arrays (orbax writes each process's part); process 0 writes the manifest."""
+        from jaxarm import parallel
+
         self._manager.save(int(step), args=ocp.args.Composite(state=ocp.args.StandardSave(state),
                                                               meta=ocp.args.JsonSave(meta)), force=True)
         self._manager.wait_until_finished()
-        write_manifest(self.directory / str(int(step)))
+        parallel.barrier(f"checkpoint-saved-{step}")
+        if parallel.is_main_process():
+            write_manifest(self.directory / str(int(step)))
+        parallel.barrier(f"checkpoint-manifest-{step}")
 
     def _newest_readable(self, read, step: int | None):
         """``read(step)`` at ``step``, or (step None) at the newest step that can be read, moving unreadable newer
@@ -98,9 +105,14 @@ class Checkpointer:
         raise FileNotFoundError(f"no checkpoint in {self.directory}")
 
     def _quarantine(self, step: int, error: Exception) -> None:
+        from jaxarm import parallel
+
         bad = self.directory / str(step)
         aside = self.directory / f"unreadable-{step}-{time.strftime('%Y%m%dT%H%M%S')}"
-        bad.rename(aside)
+        parallel.barrier(f"checkpoint-check-{step}")     # every process has judged the step before it moves
+        if parallel.is_main_process():
+            bad.rename(aside)
+        parallel.barrier(f"checkpoint-moved-{step}")
         self._manager.reload()
         why = str(error).strip().splitlines()[0][:160] if str(error).strip() else type(error).__name__
         previous = self.latest_step()
@@ -109,14 +121,25 @@ class Checkpointer:
 
     def restore(self, like_state, step: int | None = None):
         """``(state, meta)`` at ``step`` (default: the newest readable step; see the module docstring);
-        ``like_state`` gives structure, shapes and dtypes. :meth:`latest_step` is the step restored."""
-        abstract = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), like_state)
+        ``like_state`` gives structure, shapes, dtypes and, where its leaves have one, the sharding to restore into
+        (global arrays split over the device mesh, each process reading its part). :meth:`latest_step` is the step
+        restored."""
+        def mesh_sharding(x):
+            sharding = getattr(x, "sharding", None)
+            return sharding if isinstance(sharding, NamedSharding) else None
+
+        abstract = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=mesh_sharding(x)),
+                                like_state)
+
+        def placed(x, like):
+            # Orbax returns device-committed arrays; for a state not on the mesh, uncommitted copies hit the
+            # functions already compiled for the state it replaces.
+            return x if like.sharding is not None else jnp.asarray(np.asarray(x))
 
         def read(s):
             restored = self._manager.restore(s, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract),
                                                                         meta=ocp.args.JsonRestore()))
-            # Orbax returns device-committed arrays; uncommitted copies hit the already-compiled functions' cache.
-            return jax.tree.map(lambda x: jnp.asarray(np.asarray(x)), restored.state), restored.meta
+            return jax.tree.map(placed, restored.state, abstract), restored.meta
 
         return self._newest_readable(read, step)[1]
 

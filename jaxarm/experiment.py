@@ -4,9 +4,10 @@
     jaxarm test  --from runs/simple_left                   # re-test the trained networks (e.g. another duration)
 
 Network i of a run uses the key ``PRNGKey(seed + i)`` (its wiring, noise and babbling), so any network can be
-reproduced alone. All networks train together under one ``vmap``; epochs run one compiled call each, with an orbax
-checkpoint after every epoch: a killed run started again with the same command resumes from its last completed
-epoch and ends with the same results as an uninterrupted run.
+reproduced alone. All networks train together, split over every device of every process (:mod:`jaxarm.run`,
+:mod:`jaxarm.parallel`: by default every core of this machine; ``--coordinator`` for several machines); epochs run
+one compiled call each, with an orbax checkpoint after every epoch: a killed run started again with the same command
+resumes from its last completed epoch and ends with the same results as an uninterrupted run, on any layout.
 
 Outputs in ``--out`` (one subfolder per target when several are given):
 ``results.json`` (success_count, per-network seed/success/distances/reach metrics, the naive networks' results,
@@ -18,194 +19,23 @@ and velocity profiles, trained vs naive, in the style of the paper's Fig. 6).
 from __future__ import annotations
 
 import argparse
-import functools
 import json
-import time
 from dataclasses import asdict
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
+from jaxarm import parallel
 from jaxarm.analysis.reach import reach_metrics
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, LoopConfig
-from jaxarm.network import Network, NetworkConfig
+from jaxarm.network import NetworkConfig
 from jaxarm.network.wiring import PATHWAYS
+from jaxarm.run import Run, SetsRun, network_config
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
-from jaxarm.train import EpochSummary, Trained, make_train
-
-
-@functools.lru_cache(maxsize=8)
-def _compiled(config: LoopConfig):
-    """make_train and the jitted, network-vmapped init/epoch/test of one configuration (shared by every Run)."""
-    fns = make_train(config)
-    return (fns, jax.jit(jax.vmap(fns.init)), jax.jit(jax.vmap(fns.epoch, in_axes=(0, None))),
-            jax.jit(jax.vmap(fns.test, in_axes=(0, 0, None))))
-
-
-#: NetworkConfig fields `jaxarm train` sets from its options (--dt-ms, --threshold-test); recorded in the run's meta.
-NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "readout_clip")
-
-
-def network_config(source) -> NetworkConfig:
-    """The NetworkConfig of a run: ``source`` is the parsed `jaxarm train` options or a run's meta dict; an option
-    that is absent or None keeps NetworkConfig's default."""
-    get = source.get if isinstance(source, dict) else lambda k: getattr(source, k, None)
-    return NetworkConfig(**{k: get(k) for k in NETWORK_OPTIONS if get(k) is not None})
-
-
-def network_keys(seed: int, n: int):
-    return jnp.stack([jax.random.PRNGKey(seed + i) for i in range(n)])
-
-
-class Run:
-    """One target: N networks trained together, checkpointed per epoch."""
-
-    def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams):
-        self.config, self.n, self.seed, self.out, self.mp = config, n_networks, seed, out, mp
-        self.fns, self.init_fn, self.epoch_fn, self.test_fn = _compiled(config)
-
-    def meta(self) -> dict:
-        meta = {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
-                "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
-                "epoch_s": self.config.task.epoch_duration_s, "metaparams": self.mp.to_dict()}
-        return meta | self.network_meta()
-
-    def network_meta(self) -> dict:
-        """The run's :data:`NETWORK_OPTIONS` that differ from NetworkConfig's defaults (only those are recorded, so
-        folders written before the options existed still resume), and the kernel that runs the network: the native
-        and XLA kernels agree to float rounding, not bit for bit, so a run resumes only on the kernel it began on."""
-        net, default = self.config.network, NetworkConfig()
-        kernel = "native" if Network(net).uses_native_kernel else "xla"
-        return {k: getattr(net, k) for k in NETWORK_OPTIONS if getattr(net, k) != getattr(default, k)} | {
-            "kernel": kernel}
-
-    def check_resumable(self, saved: dict) -> None:
-        """Refuse to resume a checkpoint written by a different run (a folder from before the kernel was recorded
-        resumes on either kernel)."""
-        mine = self.meta()
-        if "kernel" not in saved:
-            mine.pop("kernel")
-        if saved.get("kernel", mine.get("kernel")) != mine.get("kernel"):
-            from jaxarm.network import native
-            raise SystemExit(f"{self.out / 'checkpoints'} was trained with the {saved['kernel']} network kernel and "
-                             f"this machine would continue with the {mine['kernel']} one ({native.status()}); the "
-                             "kernels agree to float rounding, not bit for bit: resume where the same kernel runs")
-        if saved != mine:
-            raise SystemExit(f"{self.out / 'checkpoints'} holds a different run ({saved}); "
-                             "use another --out or delete it")
-
-    def check_capacity(self, lost_spikes, what: str, overflow=None) -> None:
-        """Fail with the counts if any network lost a spike (a full spike list) or a synapse (a full delivery row):
-        a fixed-capacity overflow is an error, never a rounding. ``lost_spikes``, ``overflow``: (networks,)."""
-        for counts, kind, fix in ((lost_spikes, "lost spikes", "raise NetworkConfig.max_passes or spike_capacity"),
-                                  (overflow, "synapses left out of the delivery tables",
-                                   "raise NetworkConfig.out_capacity")):
-            if counts is None:
-                continue
-            counts = np.asarray(counts).reshape(-1)
-            bad = np.nonzero(counts)[0]
-            if bad.size:
-                nets = ", ".join(f"{self.seed + i} ({int(counts[i])})" for i in bad[:10])
-                raise RuntimeError(f"{what}: {int(counts.sum())} {kind} in network(s) of seed {nets}"
-                                   f"{' ...' if bad.size > 10 else ''}; {fix} (or use the native kernel)")
-
-    def empty_history(self, carry) -> EpochSummary:
-        one = jax.eval_shape(lambda c: self.epoch_fn(c, self.mp)[1], carry)
-        return jax.tree.map(lambda s: jnp.zeros((self.config.task.epochs,) + s.shape, s.dtype), one)
-
-    def train(self, progress: bool = True, stop_after: int | None = None):
-        """Train all networks (resuming from ``out/checkpoints``). ``stop_after``: return after that many epochs of
-        this invocation, as a kill would (tests use it). Returns (carry, history, wall_s, epochs_run, compile_s)."""
-        from jaxarm.checkpoint import Checkpointer
-
-        epochs = self.config.task.epochs
-        carry = self.init_fn(network_keys(self.seed, self.n))
-        self.check_capacity(None, "wiring", carry.trained.wiring.out_overflow)
-        history = self.empty_history(carry)
-        done = 0
-        with Checkpointer(self.out / "checkpoints") as ckpt:
-            meta = ckpt.read_meta()
-            if meta is not None:
-                self.check_resumable(meta)
-                (carry, history), _ = ckpt.restore((carry, history))
-                done = int(ckpt.latest_step())
-            t0 = time.perf_counter()
-            epoch_fn = self.epoch_fn.lower(carry, self.mp).compile()
-            compile_s = time.perf_counter() - t0
-            bar = _progress(epochs, done, progress, f"{self.config.arm}/{self.config.task.target}")
-            wall = 0.0
-            last = epochs if stop_after is None else min(epochs, done + stop_after)
-            for e in range(done, last):
-                t0 = time.perf_counter()
-                carry, summary = epoch_fn(carry, self.mp)
-                jax.block_until_ready(summary)
-                wall += time.perf_counter() - t0
-                self.check_capacity(summary.lost_spikes, f"training epoch {e + 1}")
-                history = jax.tree.map(lambda h, s: h.at[e].set(s), history, summary)
-                ckpt.save(e + 1, (carry, history), self.meta())
-                if bar is not None:
-                    sim_s = (e + 1 - done) * self.config.task.epoch_duration_s
-                    bar.set_postfix(sim_s=f"{(e + 1) * self.config.task.epoch_duration_s:.0f}",
-                                    net_s_per_s=f"{sim_s * self.n / wall:.1f}")
-                    bar.update(1)
-            if bar is not None:
-                bar.close()
-        return carry, history, wall, last - done, compile_s
-
-    def test(self, trained: Trained):
-        keys = jax.vmap(lambda k: jax.random.fold_in(k, 7))(network_keys(self.seed, self.n))
-        result = self.test_fn(keys, trained, self.mp)
-        self.check_capacity(result.lost_spikes, "test")
-        return result
-
-    def naive(self) -> Trained:
-        return self.init_fn(network_keys(self.seed, self.n)).trained
-
-
-@functools.lru_cache(maxsize=8)
-def _compiled_sets(config: LoopConfig):
-    """As :func:`_compiled`, with the metaparameters vmapped too: network i trains and tests with set i."""
-    fns, init_fn, _, _ = _compiled(config)
-    return (fns, init_fn, jax.jit(jax.vmap(fns.epoch, in_axes=(0, 0))),
-            jax.jit(jax.vmap(fns.test, in_axes=(0, 0, 0))))
-
-
-def unstack(mps: MetaParams) -> list[MetaParams]:
-    """The sets of a stacked MetaParams (leading axis), in order."""
-    n = int(jnp.shape(mps.learn_rate)[0])
-    return [jax.tree.map(lambda x, i=i: x[i], mps) for i in range(n)]
-
-
-class SetsRun(Run):
-    """N networks, network i (key ``PRNGKey(seed + i)``) trained and tested with metaparameter set i.
-
-    ``mps`` is a :class:`MetaParams` stacked along a leading axis of length N
-    (:func:`jaxarm.learning.metaparams.stack`); the paper's statistic (its top 30 configurations, one network each)
-    is such a run. Everything else (checkpoints, resume, outputs) is :class:`Run`'s; ``meta()["metaparams"]`` is the
-    list of the N sets.
-    """
-
-    def __init__(self, config: LoopConfig, seed: int, out: Path, mps: MetaParams):
-        self.config, self.seed, self.out, self.mp = config, seed, out, mps
-        self.n = int(jnp.shape(mps.learn_rate)[0])
-        self.fns, self.init_fn, self.epoch_fn, self.test_fn = _compiled_sets(config)
-
-    def meta(self) -> dict:
-        return {"arm": self.config.arm, "backend": self.config.backend, "target": self.config.task.target,
-                "networks": self.n, "seed": self.seed, "epochs": self.config.task.epochs,
-                "epoch_s": self.config.task.epoch_duration_s, "metaparams": [m.to_dict() for m in unstack(self.mp)]} | self.network_meta()
-
-
-def _progress(total, initial, enabled, desc):
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, initial=initial, desc=desc, unit="epoch")
+from jaxarm.train import Trained
 
 
 def _metrics(result, target_xy, dt):
@@ -224,11 +54,13 @@ def _network_rows(seeds, metrics) -> list[dict]:
     return rows
 
 
-def write_outputs(run: Run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
+def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
+    """Write a run's results.json, history.npz, trajectories.npz and reach.png (process 0 only; every process returns
+    the results). ``run``: a :class:`~jaxarm.run.Batch` of one target; the results and history are host arrays."""
     task = run.config.task
     dt = task.update_interval_s
     target = np.asarray(task.target_xy_m, np.float32)
-    seeds = [run.seed + i for i in range(run.n)]
+    seeds = run.seeds
     m_tr, m_nv = _metrics(trained_res, target, dt), _metrics(naive_res, target, dt)
     hist = {k: np.asarray(v) for k, v in history._asdict().items()}
     results = {
@@ -254,9 +86,11 @@ def write_outputs(run: Run, trained_res, naive_res, history, wall_s, epochs_run,
         "timing": {"train_wall_s_this_invocation": round(wall_s, 2), "epochs_run_this_invocation": epochs_run,
                    "compile_s": None if compile_s is None else round(compile_s, 2),
                    "network_s_per_s": round(epochs_run * task.epoch_duration_s * run.n / wall_s, 2) if wall_s else None,
-                   "device": jax.default_backend()},
+                   "device": jax.default_backend(), "layout": parallel.describe()},
         "config": {"loop": _jsonable(asdict(run.config)), **run.meta()},
     }
+    if not parallel.is_main_process():
+        return results
     run.out.mkdir(parents=True, exist_ok=True)
     (run.out / "results.json").write_text(json.dumps(results, indent=1))
     # per network and epoch (results.json holds the means): what a comparison with the original's one network needs
@@ -369,16 +203,18 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-readout-clip", dest="readout_clip", action="store_const", const=False, default=None,
                     help="do not clip the motor excitations to [0, 1] (the hoc code does not; the default clips, as "
                          "the paper's thresholded readout and every published preset; NetworkConfig.readout_clip)")
+    parallel.add_arguments(ap)
     args = ap.parse_args(argv)
     _check(ap, args)
     try:
+        parallel.start_from_arguments(args)
         configs = _configs(args)
         overrides = _parse_overrides(args.overrides)
         if "epochs" in overrides:
             raise ConfigError("--set epochs: use --epochs for the training length")
     except ConfigError as e:
         ap.error(str(e))
-    mp = MetaParams.original().replace(**{k: jnp.float32(v) for k, v in overrides.items()})
+    mp = MetaParams.from_dict(overrides)
     summary = {}
     for target, cfg in configs:
         out = args.out / target if len(configs) > 1 else args.out
@@ -387,11 +223,12 @@ def train_main(argv: list[str] | None = None) -> int:
         res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, wall, epochs_run,
                             compile_s)
         summary[target] = res["success_count"]
-        print(f"{args.arm} arm, {target} target: {res['success_count']}/{args.networks} trained networks reached "
+        if parallel.is_main_process():
+            print(f"{args.arm} arm, {target} target: {res['success_count']}/{args.networks} trained networks reached "
               f"the {cfg.task.success_radius_m * 100:.0f} cm circle (naive: {res['naive']['success_count']}/"
-              f"{args.networks}); median min distance {np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm"
-              f" -> {out / 'results.json'}")
-    if len(configs) > 1:
+                  f"{args.networks}); median min distance "
+                  f"{np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm -> {out / 'results.json'}")
+    if len(configs) > 1 and parallel.is_main_process():
         (args.out / "summary.json").write_text(json.dumps({"success_count": summary, "networks": args.networks}))
     return 0
 
@@ -440,8 +277,10 @@ def test_main(argv: list[str] | None = None) -> int:
                          "instead of the streams it trained with, which the test re-uses by default as the original "
                          "re-seeds its noise identically at every run")
     _add_test_noise_option(ap)
+    parallel.add_arguments(ap)
     args = ap.parse_args(argv)
     try:
+        parallel.start_from_arguments(args)
         overrides = _parse_overrides(args.overrides)
     except ConfigError as e:
         ap.error(str(e))
@@ -466,21 +305,20 @@ def test_main(argv: list[str] | None = None) -> int:
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
     out = args.out or args.src / "test"
     if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
-        from jaxarm.learning.metaparams import stack
+        from jaxarm.run import stack_rows
 
-        run = SetsRun(cfg, meta["seed"], out, stack([MetaParams.from_dict(m) for m in meta["metaparams"]]))
+        run = SetsRun(cfg, meta["seed"], out, stack_rows([MetaParams.from_dict(m) for m in meta["metaparams"]]))
     else:
         run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]))
-    init = run.init_fn(network_keys(run.seed, run.n))
-    with Checkpointer(args.src / "checkpoints") as ckpt:
-        (carry, history), _ = ckpt.restore((init, run.empty_history(init)))
+    carry, history = run.restore_trained(args.src / "checkpoints")
     if overrides:   # after the restore: the checkpoint was written with the trained metaparameters
-        run.mp = run.mp.replace(**{k: jnp.full_like(getattr(run.mp, k), v) for k, v in overrides.items()})
+        run.override(overrides)
     trained, naive = carry.trained, run.naive()
     if args.fresh_noise is not None:
         if args.fresh_noise < 0:
             ap.error(f"--fresh-noise = {args.fresh_noise}: must be >= 0")
         trained, naive = (fresh_noise(t, args.fresh_noise) for t in (trained, naive))
     res = write_outputs(run, run.test(trained), run.test(naive), history, 0.0, 0)
-    print(f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
+    if parallel.is_main_process():
+        print(f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
     return 0

@@ -39,7 +39,7 @@ from jaxarm.network import readout as ro
 from jaxarm.network.network import Network, NetworkParams
 from jaxarm.network.populations import Populations
 from jaxarm.network.wiring import PATHWAYS, CELL_TYPE
-from jaxarm.task.config import TaskConfig
+from jaxarm.task.config import Target, TaskConfig
 
 ARMS = ("simple", "musculoskeletal")
 #: Longest run (epoch or test) in network clock steps: float32 times step * dt keep a quarter-step resolution.
@@ -109,6 +109,7 @@ class LoopState(NamedTuple):
     #                             distance, m (rad, joint-space distance, with LoopConfig.critic_error = "angle")
     last_rl_ms: jnp.ndarray     # () time of the last critic update, ms
     last_scaling_ms: jnp.ndarray  # () time of the last synaptic scaling, ms
+    target: Target              # where this network reaches (traced, so networks of a batch may differ)
 
 
 class IntervalRecord(NamedTuple):
@@ -135,8 +136,6 @@ class ClosedLoop:
         if abs(self.arm_steps * arm_dt_ms - config.network.interface_ms) > 1e-6:
             raise ConfigError(f"arm step {arm_dt_ms} ms does not divide the interface period "
                               f"{config.network.interface_ms} ms")
-        self.target_m = jnp.asarray(config.task.target_xy_m, jnp.float32)
-        self.target_q = jnp.asarray(config.task.target_q_rad, jnp.float32)
         self.start_q = jnp.asarray(config.task.start_posture_rad, jnp.float32)
         self.steps_per_interval = config.network.steps_per_interface
         self.pops = Populations(config.network)
@@ -163,23 +162,26 @@ class ClosedLoop:
     def net_params(self, mp: MetaParams) -> NetworkParams:
         return NetworkParams(max_plast_t_ms=jnp.asarray(mp.max_plast_t_ms, jnp.float32))
 
-    def init(self, noise_key, wgain, babble: bab.BabblingState, em_rates_hz) -> LoopState:
-        """State at the start of a run (an epoch or the test): cells at rest, arm at the start posture."""
+    def init(self, noise_key, wgain, babble: bab.BabblingState, em_rates_hz, target: Target | None = None) -> LoopState:
+        """State at the start of a run (an epoch or the test): cells at rest, arm at the start posture. ``target``:
+        where to reach (default: the task's named target)."""
+        target = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32),
+                              self.config.task.target_params if target is None else target)
         arm_state = self.arm.init(self.start_q)
         # No P update at t = 0: every P cell fires its start spike at 1 ms and the first update comes at the end of
         # the first interval (10 ms), as in the original (msarm.hoc); an update here moved the start spike of the
         # ~12 cells in range at the start posture to 10 ms.
         net = self.net.init(noise_key, wgain=wgain, em_rates_hz=em_rates_hz)
-        err0 = self._critic_error(self.arm.observe(arm_state))
+        err0 = self._critic_error(self.arm.observe(arm_state), target)
         return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), babble=babble,
                          err_hist_m=jnp.stack([err0, err0]), last_rl_ms=jnp.zeros((), jnp.float32),
-                         last_scaling_ms=jnp.zeros((), jnp.float32))
+                         last_scaling_ms=jnp.zeros((), jnp.float32), target=target)
 
-    def _critic_error(self, obs):
+    def _critic_error(self, obs, target: Target):
         """What the critic compares (LoopConfig.critic_error): hand–target distance, m, or joint-space distance, rad."""
         if self.config.critic_error == "angle":
-            return jnp.linalg.norm(obs.q - self.target_q)
-        return jnp.linalg.norm(obs.hand - self.target_m)
+            return jnp.linalg.norm(obs.q - target.q_rad)
+        return jnp.linalg.norm(obs.hand - target.xy_m)
 
     def _reinforce(self, x, aux):
         """One critic signal applied to every plastic synapse with a live tag (spec §4). x = (wgain, pdope_ms)."""
@@ -220,7 +222,7 @@ class ClosedLoop:
         u = ro.excitation(c.network, readout, v_em_max=mp.v_em_max, window_ms=mp.mcmd_spk_wd_ms)
         arm_state = self._move_arm(state.arm, u)
         obs = self.arm.observe(arm_state)
-        err = self._critic_error(obs)
+        err = self._critic_error(obs, state.target)
         net = self.net.set_lengths(net, obs.proprio)
         signal = jnp.zeros((), jnp.float32)
         babble, last_rl, last_scaling = state.babble, state.last_rl_ms, state.last_scaling_ms
@@ -241,7 +243,7 @@ class ClosedLoop:
             last_rl = jnp.where(due, t_ms, state.last_rl_ms)
         state = LoopState(net=net, arm=arm_state, readout=readout, babble=babble,
                           err_hist_m=jnp.stack([state.err_hist_m[1], err]), last_rl_ms=last_rl,
-                          last_scaling_ms=last_scaling)
+                          last_scaling_ms=last_scaling, target=state.target)
         return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal)
 
     def run(self, wiring, state: LoopState, key, mp: MetaParams, n_intervals: int, learn: bool):

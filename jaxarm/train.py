@@ -24,6 +24,7 @@ from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, ClosedLoop, LoopConfig
 from jaxarm.network import noise as noise_mod
+from jaxarm.task.config import Target
 
 
 class Trained(NamedTuple):
@@ -67,11 +68,14 @@ class TestResult(NamedTuple):
 
 
 class TrainFns(NamedTuple):
+    """The pure functions of one configuration. ``target`` (a :class:`~jaxarm.task.config.Target`, traced) is
+    optional everywhere: without it the task's named target; with it networks of one batch reach different targets."""
+
     loop: ClosedLoop
     init: Callable            # key -> EpochCarry
-    epoch: Callable           # (carry, mp) -> (carry, EpochSummary)
-    train: Callable           # (key, mp) -> (Trained, EpochSummary stacked over epochs)
-    test: Callable            # (key, Trained, mp) -> TestResult
+    epoch: Callable           # (carry, mp[, target]) -> (carry, EpochSummary)
+    train: Callable           # (key, mp[, target]) -> (Trained, EpochSummary stacked over epochs)
+    test: Callable            # (key, Trained, mp[, target]) -> TestResult
 
 
 def _pop_rates(loop: ClosedLoop, counts, seconds):
@@ -96,11 +100,11 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
                           babble=bab.init_babbling(config.babbling), noise_key=k_noise)
         return EpochCarry(trained=trained, key=k_babble, epoch=jnp.zeros((), jnp.int32))
 
-    def epoch(carry: EpochCarry, mp: MetaParams):
+    def epoch(carry: EpochCarry, mp: MetaParams, target: Target | None = None):
         tr = carry.trained
         noise_key = jax.random.fold_in(tr.noise_key, carry.epoch) if config.reseed_noise_each_epoch else tr.noise_key
         babble = bab.start_epoch(tr.babble)
-        state = loop.init(noise_key, tr.wgain, babble, babble.rates_hz)
+        state = loop.init(noise_key, tr.wgain, babble, babble.rates_hz, target)
         k_epoch = jax.random.fold_in(carry.key, carry.epoch)
         # Run all but the last 10 s, snapshot the spike counts, run the rest: rates over the last 10 s as the spec.
         k1, k2 = jax.random.split(k_epoch)
@@ -109,7 +113,7 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
         state, rec2 = loop.run(tr.wiring, state, k2, mp, last10_intervals, learn=True)
         rec = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), rec1, rec2)
         counts = state.net.spike_count
-        dist = jnp.linalg.norm(rec.hand_m - loop.target_m, axis=-1)
+        dist = jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1)
         wgain = state.net.wgain
         mean_w = jax.ops.segment_sum(wgain, pathway_of, num_segments=n_pw) / jnp.asarray(
             [layout.config.size(pw.post) * layout.in_degree[pw.name] for pw in _pathways()], jnp.float32)
@@ -122,15 +126,15 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
         trained = tr._replace(wgain=wgain, babble=state.babble)
         return EpochCarry(trained=trained, key=carry.key, epoch=carry.epoch + 1), summary
 
-    def train(key, mp: MetaParams):
+    def train(key, mp: MetaParams, target: Target | None = None):
         carry = init(key)
-        carry, history = jax.lax.scan(lambda c, _: epoch(c, mp), carry, None, length=task.epochs)
+        carry, history = jax.lax.scan(lambda c, _: epoch(c, mp, target), carry, None, length=task.epochs)
         return carry.trained, history
 
-    def test(key, trained: Trained, mp: MetaParams) -> TestResult:
+    def test(key, trained: Trained, mp: MetaParams, target: Target | None = None) -> TestResult:
         rates = bab.em_noise_rates_in_test(mp)
         # The original re-seeds the noise streams identically at every run(), the test included.
-        state = loop.init(trained.noise_key, trained.wgain, trained.babble, rates)
+        state = loop.init(trained.noise_key, trained.wgain, trained.babble, rates, target)
         if task.test_em_noise_events == "netstim":
             # a NetStim stops once its event count reaches number = tstop * rate / 1000 (a real number)
             number = task.test_duration_s * jnp.asarray(mp.em_noise_rate_test_hz, jnp.float32)
@@ -140,7 +144,7 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
         state, rec = loop.run(trained.wiring, state, key, mp, task.test_steps, learn=False)
         hand = jnp.concatenate([hand0[None], rec.hand_m])
         q = jnp.concatenate([q0[None], rec.q_rad])
-        dist = jnp.linalg.norm(hand - loop.target_m, axis=-1)
+        dist = jnp.linalg.norm(hand - state.target.xy_m, axis=-1)
         return TestResult(hand_m=hand, q_rad=q, u=rec.u, distance_m=dist, min_distance_m=dist.min(),
                           final_distance_m=dist[-1], success=jnp.any(dist <= task.success_radius_m),
                           rates_hz=_pop_rates(loop, state.net.spike_count, task.test_duration_s),

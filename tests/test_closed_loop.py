@@ -62,7 +62,7 @@ def test_vmap_over_metaparameter_sets_compiles_once(fns):
 
 
 def test_train_command_resumes_bit_for_bit(tmp_path):
-    from jaxarm.experiment import Run
+    from jaxarm.run import Run
 
     mp = MetaParams.original()
     cfg = LoopConfig(arm="simple", task=TaskConfig(epochs=3, epoch_duration_s=0.3))
@@ -76,7 +76,7 @@ def test_train_command_resumes_bit_for_bit(tmp_path):
 
 def test_train_resumes_from_the_previous_checkpoint_when_the_newest_is_damaged(tmp_path, capsys):
     from conftest import truncate_newest_checkpoint
-    from jaxarm.experiment import Run
+    from jaxarm.run import Run
 
     mp = MetaParams.original()
     cfg = LoopConfig(arm="simple", task=TaskConfig(epochs=3, epoch_duration_s=0.3))
@@ -163,7 +163,7 @@ def test_angle_critic_compares_joint_space_distance():
         for posture in (start, q):
             obs.q = jnp.asarray(posture, jnp.float32)
             obs.hand = loop.arm.observe(loop.arm.init(obs.q)).hand
-            errors[kind].append(float(loop._critic_error(obs)))
+            errors[kind].append(float(loop._critic_error(obs, loop.config.task.target_params)))
     np.testing.assert_allclose(errors["angle"], [np.linalg.norm(start - goal), np.linalg.norm(q - goal)], rtol=1e-5)
     assert errors["xy"][1] < errors["xy"][0] and errors["angle"][1] > errors["angle"][0]
 
@@ -259,7 +259,7 @@ def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
     import importlib.util
     from pathlib import Path
 
-    from jaxarm.experiment import Run
+    from jaxarm.run import Run
 
     path = Path(__file__).resolve().parents[1] / "experiments" / "learning_curve.py"
     spec = importlib.util.spec_from_file_location("learning_curve", path)
@@ -319,7 +319,7 @@ def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
 def test_a_run_that_loses_spikes_fails_with_the_counts(tmp_path):
     """The XLA kernel's spike lists are fixed-capacity: squeezed to one entry and one pass, spikes are lost, and a
     training run stops with the counts instead of carrying on with a wrong network."""
-    from jaxarm.experiment import Run
+    from jaxarm.run import Run
     from jaxarm.network import NetworkConfig
 
     net = NetworkConfig(kernel="xla", spike_capacity=(1, 1, 1), batch_spike_capacity=(0.01, 0.01, 0.01), max_passes=1)
@@ -375,7 +375,7 @@ def test_native_and_xla_kernels_train_identically_and_babbling_switches():
 
 
 def test_a_run_resumes_only_on_the_kernel_it_began_on(tmp_path):
-    from jaxarm.experiment import Run
+    from jaxarm.run import Run
     from jaxarm.network import NetworkConfig, native
 
     if not native.available():
@@ -396,7 +396,7 @@ def test_trained_networks_reach_closer_than_their_naive_selves(tmp_path):
     5 cm of the left target where their untrained selves stay 12-15 cm away (measured 1.5 and 5.0 cm vs 14.8 and
     12.3 cm; with the critic's sign flipped both end at 15.1 cm, so this fails if rewards and punishments swap)."""
     from jaxarm.evolve import presets
-    from jaxarm.experiment import Run
+    from jaxarm.run import Run
 
     mp = MetaParams.from_dict(presets.load("simple-cmaes-left-shoulder").best)
     cfg = LoopConfig(arm="simple", task=TaskConfig(target="left", epochs=3, epoch_duration_s=20.0))

@@ -124,8 +124,9 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
     stop the first unfinished folder after that many epochs of this call and return None (tests use it to
     interrupt a run). ``dt_ms``: the network clock step (None: NetworkConfig's default), recorded in the runs'
     meta when not the default."""
-    from jaxarm.experiment import Run, SetsRun
-    from jaxarm.learning.metaparams import MetaParams, stack
+    from jaxarm.run import Run, SetsRun
+    from jaxarm.learning.metaparams import MetaParams
+    from jaxarm.run import stack_rows as stack
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
 
@@ -159,7 +160,7 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
             f"{','.join(other)} too")
     no_top = None if top_sets else (f"preset {preset.name!r} has no top list (only its best set is known)")
 
-    from jaxarm.experiment import network_config
+    from jaxarm.run import network_config
 
     network = network_config({"dt_ms": dt_ms})
 

@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
 
 from jaxarm.config.arm import ARM_SEGMENTS_M, ELBOW_RANGE_DEG, SHOULDER_RANGE_DEG, START_POSTURE_RAD
 from jaxarm.config.validate import ConfigError, check_choice, check_range
@@ -39,6 +42,28 @@ def forward_kinematics_m(q_rad, segments_m=ARM_SEGMENTS_M) -> tuple[float, float
     l1, l2 = segments_m
     q1, q12 = q_rad[0], q_rad[0] + q_rad[1]
     return (l1 * math.cos(q1) + l2 * math.cos(q12), l1 * math.sin(q1) + l2 * math.sin(q12))
+
+
+class Target(NamedTuple):
+    """Where a network reaches, as traced data (one per network under ``vmap``), so networks reaching different
+    targets share one compiled loop: the hand position (m) and the joint angles (rad) of the target."""
+
+    xy_m: Any       # (2,) float32
+    q_rad: Any      # (2,) float32 (shoulder, elbow)
+
+    @classmethod
+    def named(cls, name: str) -> "Target":
+        """The target of :data:`TARGET_ANGLES_RAD` called ``name`` (authors' forward kinematics)."""
+        if name not in TARGET_ANGLES_RAD:
+            raise ConfigError(f"target = {name!r}: must be one of {', '.join(TARGET_ANGLES_RAD)}")
+        q = TARGET_ANGLES_RAD[name]
+        return cls(np.asarray(forward_kinematics_m(q), np.float32), np.asarray(q, np.float32))
+
+    @classmethod
+    def stack(cls, names) -> "Target":
+        """One row per name: (n, 2) arrays."""
+        rows = [cls.named(n) for n in names]
+        return cls(np.stack([r.xy_m for r in rows]), np.stack([r.q_rad for r in rows]))
 
 
 @dataclass(frozen=True)
@@ -91,6 +116,11 @@ class TaskConfig:
     def target_q_rad(self) -> tuple[float, float]:
         """Target joint angles (shoulder, elbow), rad."""
         return TARGET_ANGLES_RAD[self.target]
+
+    @property
+    def target_params(self) -> Target:
+        """:attr:`target` as traced data (the default of the loop's ``target`` arguments)."""
+        return Target.named(self.target)
 
     @property
     def target_xy_m(self) -> tuple[float, float]:

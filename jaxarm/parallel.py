@@ -1,0 +1,194 @@
+"""Every device of every machine as one batch axis: JAX's mesh, ``shard_map`` and ``jax.distributed``.
+
+A batch of networks (a training run, a search's candidates x seeds, a reproduction) is split along its leading
+axis over a 1-D :class:`jax.sharding.Mesh` of all devices of all processes (axis :data:`AXIS`). Each device runs the
+``vmap``-ed function on its share (``jax.shard_map``): on a CPU the native C++ network kernel per device, on an
+accelerator the pure-JAX kernel. Networks never talk to each other, so nothing crosses devices but what the caller
+gathers (fitness for a search's ``tell``, results at the end). A network's result does not depend on which device or
+process computes it, nor on how many share its device, so every layout gives the same bits.
+
+Set-up, once per process and before JAX computes anything (:func:`start`; the command line's ``--devices``,
+``--coordinator``, ``--num-processes``, ``--process-id``, see :func:`add_arguments`):
+
+* CPU: ``devices`` host devices per process (default: the cores this process may use), each running one network
+  kernel thread, so a command uses the whole machine.
+* Several processes (machines): ``jax.distributed.initialize`` with the coordinator's address, or with nothing under
+  SLURM or Open MPI (JAX reads their environment); CPU collectives through gloo. Process 0 writes the outputs;
+  checkpoints are orbax multi-process checkpoints on a file system all processes share.
+
+A batch that does not divide the device count is padded (:func:`padded_size`): the extra members are computed and
+dropped by the caller, never counted.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+from functools import lru_cache
+from typing import Any, Callable
+
+import jax
+import numpy as np
+from jax.sharding import AxisType, Mesh, NamedSharding, PartitionSpec
+
+from jaxarm.config.validate import ConfigError
+
+#: The mesh axis the batch is split along.
+AXIS = "batch"
+BATCHED = PartitionSpec(AXIS)
+REPLICATED = PartitionSpec()
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:   # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _cluster_detected() -> bool:
+    """Whether JAX can find its processes by itself: a SLURM job step or an Open MPI launch of several tasks."""
+    slurm = int(os.environ.get("SLURM_NTASKS", os.environ.get("SLURM_NPROCS", "1")) or 1) > 1 \
+        and "SLURM_PROCID" in os.environ
+    ompi = int(os.environ.get("OMPI_COMM_WORLD_SIZE", "1") or 1) > 1
+    return slurm or ompi
+
+
+def start(devices: int | None = None, coordinator: str | None = None, num_processes: int | None = None,
+          process_id: int | None = None) -> None:
+    """Configure this process before JAX computes anything: ``devices`` CPU host devices (default
+    :func:`usable_cores`), and, with a coordinator (or a detected SLURM / Open MPI job, or ``JAX_COORDINATOR_ADDRESS``),
+    join the other processes through ``jax.distributed`` with gloo CPU collectives.
+
+    Called after JAX has already computed (a notebook, a test calling a command's ``main``), the device count cannot
+    change any more: the devices JAX has are used and ``devices`` is ignored.
+    """
+    from jax._src import xla_bridge
+
+    if devices is not None and devices < 1:
+        raise ConfigError(f"--devices = {devices}: must be >= 1")
+    explicit = [v is not None for v in (coordinator, num_processes, process_id)]
+    if any(explicit) and not all(explicit):
+        raise ConfigError("--coordinator, --num-processes and --process-id go together (or none of them, under "
+                          "SLURM or Open MPI)")
+    if all(explicit):
+        if num_processes < 1:
+            raise ConfigError(f"--num-processes = {num_processes}: must be >= 1")
+        if not 0 <= process_id < num_processes:
+            raise ConfigError(f"--process-id = {process_id}: must be in [0, {num_processes - 1}]")
+        if ":" not in coordinator:
+            raise ConfigError(f"--coordinator = {coordinator!r}: expected HOST:PORT")
+    if xla_bridge.backends_are_initialized():
+        return
+    jax.config.update("jax_num_cpu_devices", devices or usable_cores())
+    distributed = all(explicit) and num_processes > 1
+    if distributed or _cluster_detected() or os.environ.get("JAX_COORDINATOR_ADDRESS"):
+        jax.config.update("jax_cpu_collectives_implementation", "gloo")
+        if distributed:
+            jax.distributed.initialize(coordinator_address=coordinator, num_processes=num_processes,
+                                       process_id=process_id)
+        else:
+            jax.distributed.initialize()
+
+
+def add_arguments(ap: argparse.ArgumentParser) -> None:
+    """The scale-out options every batch command takes."""
+    g = ap.add_argument_group("devices and machines (default: every core of this machine)")
+    g.add_argument("--devices", type=int, default=None, metavar="N",
+                   help="CPU devices of this process, one network-kernel thread each (default: every usable core, "
+                        f"{usable_cores()} here); accelerators: all of them are used")
+    g.add_argument("--coordinator", default=None, metavar="HOST:PORT",
+                   help="several processes (machines): process 0's address; give every process the same command with "
+                        "its own --process-id (not needed under SLURM or Open MPI, which JAX detects)")
+    g.add_argument("--num-processes", type=int, default=None, metavar="N", help="number of processes (with --coordinator)")
+    g.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1 (with --coordinator)")
+
+
+def start_from_arguments(args) -> None:
+    start(args.devices, args.coordinator, args.num_processes, args.process_id)
+
+
+@lru_cache(maxsize=None)
+def _mesh(devices: tuple) -> Mesh:
+    return Mesh(np.asarray(devices), (AXIS,), axis_types=(AxisType.Auto,))
+
+
+def mesh() -> Mesh:
+    """The 1-D mesh of every device of every process (the same object for the same devices)."""
+    return _mesh(tuple(jax.devices()))
+
+
+def padded_size(n: int, m: Mesh | None = None) -> int:
+    """``n`` rounded up to a multiple of the mesh's device count."""
+    d = (m or mesh()).size
+    return -(-n // d) * d
+
+
+def is_main_process() -> bool:
+    """Process 0 writes results, figures and logs."""
+    return jax.process_index() == 0
+
+
+def barrier(name: str) -> None:
+    """Wait for every process (no-op with one)."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
+
+
+def shard(fn: Callable, in_specs, out_specs, m: Mesh | None = None) -> Callable:
+    """``jit(shard_map(fn))`` over the batch mesh: ``fn`` (already ``vmap``-ed) runs on each device's share of every
+    argument with spec :data:`BATCHED`; :data:`REPLICATED` arguments reach every device whole."""
+    m = m or mesh()
+    return jax.jit(jax.shard_map(fn, mesh=m, in_specs=in_specs, out_specs=out_specs, check_vma=False))
+
+
+def put(tree, spec: PartitionSpec, m: Mesh | None = None):
+    """Host values (numpy or JAX, the same on every process) as global arrays with ``spec`` on the mesh."""
+    m = m or mesh()
+    sharding = NamedSharding(m, spec)
+
+    def one(x):
+        x = np.asarray(x)
+        return jax.make_array_from_callback(x.shape, sharding, lambda index: x[index])
+
+    return jax.tree.map(one, tree)
+
+
+def host(tree) -> Any:
+    """Global arrays as numpy arrays on every process (gathered across processes where they are split)."""
+    def one(x):
+        if not isinstance(x, jax.Array) or x.is_fully_addressable:
+            return np.asarray(x)
+        if x.is_fully_replicated:
+            return np.asarray(x.addressable_data(0))
+        from jax.experimental import multihost_utils
+
+        return np.asarray(multihost_utils.process_allgather(x, tiled=True))
+
+    return jax.tree.map(one, tree)
+
+
+def abstract(tree) -> Any:
+    """Shapes, dtypes and shardings of a pytree of arrays (what orbax restores into)."""
+    return jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=getattr(x, "sharding", None)),
+                        tree)
+
+
+def pad_rows(x, n: int):
+    """``x`` (n0, ...) extended to n rows by repeating its last row (host arrays)."""
+    x = np.asarray(x)
+    if x.shape[0] == n:
+        return x
+    return np.concatenate([x, np.repeat(x[-1:], n - x.shape[0], axis=0)])
+
+
+def describe() -> dict:
+    """What this process computes on, for results and logs."""
+    return {"backend": jax.default_backend(), "devices": jax.device_count(), "local_devices": jax.local_device_count(),
+            "processes": jax.process_count(), "device_kind": jax.devices()[0].device_kind}
+
+
+__all__ = ["AXIS", "BATCHED", "REPLICATED", "start", "add_arguments", "start_from_arguments", "mesh", "padded_size",
+           "is_main_process", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe", "usable_cores"]

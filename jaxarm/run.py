@@ -1,0 +1,308 @@
+"""A batch of networks trained together over every device, checkpointed after every epoch.
+
+Network i of a batch has the key ``PRNGKey(seeds[i])`` (its wiring, noise and babbling), metaparameter set ``mps[i]``
+and target ``targets[i]``; nothing else about the batch changes its results, so any network can be reproduced alone,
+in any batch, on any number of devices or processes (:mod:`jaxarm.parallel`). The batch's leading axis is split
+over the device mesh; one compiled ``epoch`` runs all of it, and an orbax checkpoint follows every epoch, so a killed
+run started again with the same command resumes from its last completed epoch and ends with the same bits.
+
+* :class:`Run`: one metaparameter set, one target, networks ``seed .. seed + n - 1`` (``jaxarm train``).
+* :class:`SetsRun`: network i trains with set i (the paper's statistic: its top 30 sets, one network each).
+* :class:`Batch`: any list of (seed, set, target) rows, e.g. every network of a reproduction in one program.
+"""
+from __future__ import annotations
+
+import functools
+import time
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import numpy as np
+
+from jaxarm import parallel
+from jaxarm.learning.metaparams import NAMES, MetaParams
+from jaxarm.loop import LoopConfig
+from jaxarm.network import Network, NetworkConfig
+from jaxarm.task.config import Target
+from jaxarm.train import EpochSummary, TestResult, Trained, make_train
+
+#: NetworkConfig fields the commands set from their options; recorded in a run's meta when not the default.
+NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "readout_clip")
+#: Fold of a network's key that seeds its test.
+TEST_KEY_FOLD = 7
+
+
+@functools.lru_cache(maxsize=16)
+def compiled(config: LoopConfig, mesh) -> tuple:
+    """``make_train(config)`` and its init / epoch / test, ``vmap``-ed over networks (keys, metaparameters and
+    targets all per network) and sharded over ``mesh``; shared by every batch of the same configuration."""
+    fns = make_train(config)
+    b = parallel.BATCHED
+    init = parallel.shard(jax.vmap(fns.init), b, b, mesh)
+    epoch = parallel.shard(jax.vmap(fns.epoch), (b, b, b), b, mesh)
+    test = parallel.shard(jax.vmap(fns.test), (b, b, b, b), b, mesh)
+    return fns, init, epoch, test
+
+
+def network_keys(seeds) -> np.ndarray:
+    """(n, 2) uint32 keys ``PRNGKey(seed)`` of the given seeds."""
+    return np.stack([np.asarray(jax.random.PRNGKey(int(s))) for s in seeds])
+
+
+def stack_rows(rows: list[MetaParams]) -> MetaParams:
+    return MetaParams(**{n: np.stack([np.asarray(getattr(m, n), np.float32) for m in rows]) for n in NAMES})
+
+
+def unstack(mps: MetaParams) -> list[MetaParams]:
+    """The sets of a stacked MetaParams (leading axis), in order."""
+    n = int(np.shape(mps.learn_rate)[0])
+    return [MetaParams(**{k: np.asarray(getattr(mps, k))[i] for k in NAMES}) for i in range(n)]
+
+
+def network_config(source) -> NetworkConfig:
+    """The NetworkConfig of a run: ``source`` is a command's parsed options or a run's meta dict; an option that is
+    absent or None keeps NetworkConfig's default."""
+    get = source.get if isinstance(source, dict) else lambda k: getattr(source, k, None)
+    return NetworkConfig(**{k: get(k) for k in NETWORK_OPTIONS if get(k) is not None})
+
+
+class Batch:
+    """Networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and targets ``targets[i]`` (stacked), trained
+    with one configuration into ``out`` (checkpoints in ``out/checkpoints``). ``description``: the JSON identity of
+    the batch (what a checkpoint must match to be resumed)."""
+
+    def __init__(self, config: LoopConfig, seeds, mps: MetaParams, targets: Target, out: Path, description: dict):
+        self.config, self.out = config, Path(out)
+        self.seeds = [int(s) for s in seeds]
+        self.n = len(self.seeds)
+        if self.n < 1:
+            raise ValueError("a batch needs at least one network")
+        self.mps, self.targets, self.description = mps, targets, description
+        self.mesh = parallel.mesh()
+        self.n_padded = parallel.padded_size(self.n, self.mesh)
+        self.fns, self.init_fn, self.epoch_fn, self.test_fn = compiled(config, self.mesh)
+
+    # -- identity -------------------------------------------------------------------------------------------------
+    def meta(self) -> dict:
+        return self.description | self.network_meta()
+
+    def network_meta(self) -> dict:
+        """The run's :data:`NETWORK_OPTIONS` that differ from NetworkConfig's defaults (only those are recorded, so
+        folders written before the options existed still resume), and the kernel that runs the network: the native
+        and XLA kernels agree to float rounding, not bit for bit, so a run resumes only on the kernel it began on."""
+        net, default = self.config.network, NetworkConfig()
+        kernel = "native" if Network(net).uses_native_kernel else "xla"
+        return {k: getattr(net, k) for k in NETWORK_OPTIONS if getattr(net, k) != getattr(default, k)} | {
+            "kernel": kernel}
+
+    def layout(self) -> dict:
+        """How the batch is laid out over devices (not part of its identity: results do not depend on it)."""
+        return {"padded_networks": self.n_padded, "devices": self.mesh.size, "processes": jax.process_count()}
+
+    def check_resumable(self, saved: dict) -> None:
+        """Refuse to resume a checkpoint written by a different run (a folder from before the kernel was recorded
+        resumes on either kernel). The layout (devices, processes) may differ: results do not depend on it."""
+        saved = {k: v for k, v in saved.items() if k != "layout"}
+        mine = self.meta()
+        if "kernel" not in saved:
+            mine.pop("kernel")
+        if saved.get("kernel", mine.get("kernel")) != mine.get("kernel"):
+            from jaxarm.network import native
+            raise SystemExit(f"{self.out / 'checkpoints'} was trained with the {saved['kernel']} network kernel and "
+                             f"this machine would continue with the {mine['kernel']} one ({native.status()}); the "
+                             "kernels agree to float rounding, not bit for bit: resume where the same kernel runs")
+        if saved != mine:
+            raise SystemExit(f"{self.out / 'checkpoints'} holds a different run ({saved}); "
+                             "use another --out or delete it")
+
+    def _restore(self, ckpt, carry, history, saved: dict):
+        """(carry on the mesh, host history) from ``ckpt``'s newest step. A checkpoint written on another layout
+        (the batch padded for another device count) is read whole, its padding dropped and the batch re-split."""
+        padded = saved.get("layout", {}).get("padded_networks", self.n)
+        hist_like = parallel.put(history, parallel.REPLICATED, self.mesh)
+        if padded == self.n_padded:
+            (carry, hist), _ = ckpt.restore((carry, hist_like))
+            return carry, jax.tree.map(np.array, parallel.host(hist))      # writable copies
+        whole = jax.sharding.NamedSharding(self.mesh, parallel.REPLICATED)
+        like = jax.tree.map(lambda x: jax.ShapeDtypeStruct((padded,) + x.shape[1:], x.dtype, sharding=whole), carry)
+        (old, hist), _ = ckpt.restore((like, hist_like))
+        old = jax.tree.map(lambda x: x[: self.n], parallel.host(old))
+        return self._padded(old), jax.tree.map(np.array, parallel.host(hist))
+
+    def check_capacity(self, lost_spikes, what: str, overflow=None) -> None:
+        """Fail with the counts if any network lost a spike (a full spike list) or a synapse (a full delivery row):
+        a fixed-capacity overflow is an error, never a rounding. ``lost_spikes``, ``overflow``: (networks,)."""
+        for counts, kind, fix in ((lost_spikes, "lost spikes", "raise NetworkConfig.max_passes or spike_capacity"),
+                                  (overflow, "synapses left out of the delivery tables",
+                                   "raise NetworkConfig.out_capacity")):
+            if counts is None:
+                continue
+            counts = np.asarray(counts).reshape(-1)[: self.n]
+            bad = np.nonzero(counts)[0]
+            if bad.size:
+                nets = ", ".join(f"{self.seeds[i]} ({int(counts[i])})" for i in bad[:10])
+                raise RuntimeError(f"{what}: {int(counts.sum())} {kind} in network(s) of seed {nets}"
+                                   f"{' ...' if bad.size > 10 else ''}; {fix} (or use the native kernel)")
+
+    def override(self, values: dict[str, float]) -> None:
+        """Change these metaparameters in every network's set (e.g. a re-test with another readout gain); the
+        recorded metaparameters follow."""
+        self.mps = self.mps.replace(**{k: np.full(np.shape(getattr(self.mps, k)), v, np.float32)
+                                       for k, v in values.items()})
+        recorded = self.description.get("metaparams")
+        if isinstance(recorded, list):
+            self.description["metaparams"] = [m | {k: float(v) for k, v in values.items()} for m in recorded]
+        elif isinstance(recorded, dict):
+            self.description["metaparams"] = recorded | {k: float(v) for k, v in values.items()}
+
+    # -- the batch on the devices ----------------------------------------------------------------------------------
+    def _padded(self, tree):
+        """Host rows (n, ...) padded to the device multiple and split over the mesh."""
+        return parallel.put(jax.tree.map(lambda x: parallel.pad_rows(x, self.n_padded), tree), parallel.BATCHED,
+                            self.mesh)
+
+    def keys(self, fold: int | None = None):
+        """The networks' keys on the mesh; the padding rows are further seeds (computed, then dropped)."""
+        extra = max(self.seeds) + 1
+        seeds = self.seeds + list(range(extra, extra + self.n_padded - self.n))
+        keys = network_keys(seeds)
+        if fold is not None:
+            keys = np.asarray(jax.vmap(lambda k: jax.random.fold_in(k, fold))(keys))
+        return parallel.put(keys, parallel.BATCHED, self.mesh)
+
+    def batched_inputs(self):
+        """(metaparameters, targets) on the mesh, one row per network."""
+        return self._padded(self.mps), self._padded(Target(*(np.asarray(x, np.float32) for x in self.targets)))
+
+    def _empty_history(self, carry, mps, targets) -> EpochSummary:
+        one = jax.eval_shape(lambda c, m, t: self.epoch_fn(c, m, t)[1], carry, mps, targets)
+        return jax.tree.map(lambda s: np.zeros((self.config.task.epochs, self.n) + s.shape[1:], s.dtype), one)
+
+    def train(self, progress: bool = True, stop_after: int | None = None):
+        """Train all networks (resuming from ``out/checkpoints``). ``stop_after``: return after that many epochs of
+        this invocation, as a kill would (tests use it). Returns (carry, history, wall_s, epochs_run, compile_s):
+        ``carry`` on the mesh (padded), ``history`` host arrays (epochs, networks, ...)."""
+        from jaxarm.checkpoint import Checkpointer
+
+        epochs = self.config.task.epochs
+        mps, targets = self.batched_inputs()
+        carry = self.init_fn(self.keys())
+        self.check_capacity(parallel.host(carry.trained.wiring.out_overflow), "wiring")
+        history = self._empty_history(carry, mps, targets)
+        done = 0
+        with Checkpointer(self.out / "checkpoints") as ckpt:
+            saved = ckpt.read_meta()
+            if saved is not None:
+                self.check_resumable(saved)
+                carry, history = self._restore(ckpt, carry, history, saved)
+                done = int(ckpt.latest_step())
+            t0 = time.perf_counter()
+            epoch_fn = self.epoch_fn.lower(carry, mps, targets).compile()
+            compile_s = time.perf_counter() - t0
+            bar = _progress(epochs, done, progress and parallel.is_main_process(), self.description.get("label", ""))
+            wall = 0.0
+            last = epochs if stop_after is None else min(epochs, done + stop_after)
+            for e in range(done, last):
+                t0 = time.perf_counter()
+                carry, summary = epoch_fn(carry, mps, targets)
+                summary = jax.tree.map(lambda x: x[: self.n], parallel.host(summary))
+                wall += time.perf_counter() - t0
+                self.check_capacity(summary.lost_spikes, f"training epoch {e + 1}")
+                for h, s in zip(history, summary):
+                    h[e] = s
+                ckpt.save(e + 1, (carry, parallel.put(history, parallel.REPLICATED, self.mesh)),
+                          self.meta() | {"layout": self.layout()})
+                if bar is not None:
+                    sim_s = (e + 1 - done) * self.config.task.epoch_duration_s
+                    bar.set_postfix(sim_s=f"{(e + 1) * self.config.task.epoch_duration_s:.0f}",
+                                    net_s_per_s=f"{sim_s * self.n / wall:.1f}")
+                    bar.update(1)
+            if bar is not None:
+                bar.close()
+        return carry, history, wall, last - done, compile_s
+
+    def test(self, trained: Trained) -> TestResult:
+        """The 1 s test of every network (host arrays, padding dropped)."""
+        mps, targets = self.batched_inputs()
+        result = self.test_fn(self.keys(TEST_KEY_FOLD), trained, mps, targets)
+        result = jax.tree.map(lambda x: x[: self.n], parallel.host(result))
+        self.check_capacity(result.lost_spikes, "test")
+        return result
+
+    def naive(self) -> Trained:
+        """The untrained networks (on the mesh, padded), for the naive test."""
+        return self.init_fn(self.keys()).trained
+
+    def restore_trained(self, checkpoints: Path) -> tuple:
+        """(carry, history) of the last checkpoint in ``checkpoints`` (a finished run's), for a re-test."""
+        from jaxarm.checkpoint import Checkpointer
+
+        mps, targets = self.batched_inputs()
+        carry = self.init_fn(self.keys())
+        history = self._empty_history(carry, mps, targets)
+        with Checkpointer(checkpoints) as ckpt:
+            return self._restore(ckpt, carry, history, ckpt.read_meta())
+
+
+class Run(Batch):
+    """One target: networks ``seed .. seed + n - 1`` trained with one metaparameter set ``mp``."""
+
+    def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams):
+        self.mp, self.seed = mp, seed
+        super().__init__(config, range(seed, seed + n_networks), stack_rows([mp] * n_networks),
+                         Target.stack([config.task.target] * n_networks), out,
+                         {"arm": config.arm, "backend": config.backend, "target": config.task.target,
+                          "networks": n_networks, "seed": seed, "epochs": config.task.epochs,
+                          "epoch_s": config.task.epoch_duration_s, "metaparams": mp.to_dict(),
+                          "label": f"{config.arm}/{config.task.target}"})
+
+    def meta(self) -> dict:
+        return {k: v for k, v in super().meta().items() if k != "label"}
+
+
+class SetsRun(Batch):
+    """N networks, network i (key ``PRNGKey(seed + i)``) trained and tested with metaparameter set i.
+
+    ``mps`` is a :class:`MetaParams` stacked along a leading axis of length N
+    (:func:`jaxarm.learning.metaparams.stack`); the paper's statistic (its top 30 configurations, one network each)
+    is such a run. ``meta()["metaparams"]`` is the list of the N sets.
+    """
+
+    def __init__(self, config: LoopConfig, seed: int, out: Path, mps: MetaParams):
+        n = int(np.shape(mps.learn_rate)[0])
+        self.mp, self.seed = mps, seed
+        super().__init__(config, range(seed, seed + n), mps, Target.stack([config.task.target] * n), out,
+                         {"arm": config.arm, "backend": config.backend, "target": config.task.target,
+                          "networks": n, "seed": seed, "epochs": config.task.epochs,
+                          "epoch_s": config.task.epoch_duration_s, "metaparams": [m.to_dict() for m in unstack(mps)],
+                          "label": f"{config.arm}/{config.task.target}"})
+
+    def meta(self) -> dict:
+        return {k: v for k, v in super().meta().items() if k != "label"}
+
+
+def _progress(total, initial, enabled, desc):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, desc=desc, unit="epoch")
+
+
+class Rows(NamedTuple):
+    """Selected networks of a batch's results (host arrays), for writing one group's outputs."""
+
+    trained: TestResult
+    naive: TestResult
+    history: EpochSummary
+
+
+def select(rows: slice, trained: TestResult, naive: TestResult, history: EpochSummary) -> Rows:
+    """The networks ``rows`` of a batch's test results and history (history is (epochs, networks, ...))."""
+    return Rows(jax.tree.map(lambda x: x[rows], trained), jax.tree.map(lambda x: x[rows], naive),
+                jax.tree.map(lambda x: x[:, rows], history))
+
+
+__all__ = ["Batch", "Run", "SetsRun", "compiled", "network_keys", "network_config", "stack_rows", "unstack",
+           "NETWORK_OPTIONS", "select", "Rows"]
