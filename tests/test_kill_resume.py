@@ -77,7 +77,7 @@ def test_killed_reproduce_resumes_bit_for_bit(tmp_path, env):
             "--networks", "2", "--top", "2", "--epochs", "4", "--epoch-s", "0.4", "--test-s", "0.2", "--no-progress"]
     in_process(args, tmp_path / "full")
     killed = tmp_path / "killed"
-    kill_after(args, killed, killed / "left" / "seeds" / "checkpoints" / "2", env)
+    kill_after(args, killed, killed / "checkpoints" / "2", env)
     assert not (killed / "success_table.json").exists()
     run_to_end(args, killed, env)
     for mode in ("seeds", "top30"):

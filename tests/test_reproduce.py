@@ -175,9 +175,8 @@ def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
         assert row[mode] == sum(n["success"] for n in nets) and len(nets) == 2
     assert {"arm", "preset", "command", "seed", "timing", "paper"} <= set(table)
     assert table["command"].startswith("jaxarm reproduce --preset quad")
-    folders = table["timing"]["folders"]
-    assert folders["left/seeds"]["epochs_run"] == 1      # resumed: only the second epoch ran
-    assert folders["left/top30"]["epochs_run"] == 2
+    batch = table["timing"]["batches"]["2 epochs"]   # both modes trained in one batch of 4 networks
+    assert batch["epochs_run"] == 1 and batch["batch_networks"] == 4     # resumed: only the second epoch ran
     # (b) trains network i with set i: the folder records the sets, and `jaxarm test` re-tests it identically
     top30 = json.loads((out / "left" / "top30" / "results.json").read_text())
     assert top30["config"]["metaparams"] == [r["metaparams"] for r in p.top[:2]]
@@ -195,7 +194,7 @@ def test_reproduce_resumes_past_a_damaged_checkpoint(tmp_path, preset_dir, capsy
     assert reproduce(p, "simple", ["left"], tmp_path / "full", **kw) is not None
     out = tmp_path / "killed"
     assert reproduce(p, "simple", ["left"], out, stop_after=1, **kw) is None
-    truncate_newest_checkpoint(out / "left" / "seeds" / "checkpoints")
+    truncate_newest_checkpoint(out / "checkpoints")
     assert reproduce(p, "simple", ["left"], out, **kw) is not None
     assert "no earlier checkpoint: starting afresh" in capsys.readouterr().err
     for folder in ("seeds", "top30"):

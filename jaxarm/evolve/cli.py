@@ -17,6 +17,7 @@ import json
 import sys
 from pathlib import Path
 
+from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
 
 DEFAULT_FITNESS = "reaching"
@@ -80,11 +81,17 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-chunks", type=int, default=None, help="stop after this many chunks (resume later)")
     ap.add_argument("--list-fitness", action="store_true", help="list registered fitness functions and exit")
     ap.add_argument("--list-strategies", action="store_true", help="list evosax strategies and exit")
+    parallel.add_arguments(ap)
     return ap
 
 
 def evolve_main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    try:
+        parallel.start_from_arguments(args)
+    except ConfigError as e:
+        print(f"jaxarm evolve: {e}", file=sys.stderr)
+        return 2
     from jaxarm.evolve import fitness as fitness_registry
     if args.list_fitness:
         for name, help_ in fitness_registry.available().items():

@@ -24,13 +24,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
 import sys
 import time
 from pathlib import Path
 
+import jax
 import numpy as np
 
+from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
 from jaxarm.evolve import presets as preset_lib
 
@@ -82,26 +85,48 @@ def _comparable(config):
     return config
 
 
-def _run_one(run, progress: bool, stop_after: int | None, log):
-    """Train (resuming), test and write one folder; reuse it when finished. Returns (results, timing) or None when
-    ``stop_after`` stopped training early (as a kill would). The timing is the folder's results.json's: the
-    training of the invocation that finished it (epochs_run of them)."""
+def _train_together(groups: list, out: Path, progress: bool, stop_after: int | None, log):
+    """Train every group's networks in one batch (one compiled program over every device), test them, and write
+    each group's ordinary `jaxarm train` folder (results, trajectories, figure, and a checkpoint of its trained
+    networks for `jaxarm test --from`). The batch checkpoints itself in ``out/checkpoints``; a batch whose folders
+    are all finished is reused. Returns {folder: (results, timing)} or None when ``stop_after`` stopped it early."""
+    from jaxarm.checkpoint import Checkpointer
     from jaxarm.experiment import write_outputs
+    from jaxarm.run import Batch, select, stack_rows, unstack
+    from jaxarm.task.config import Target
 
-    res = _finished(run)
-    reused = res is not None
-    if reused:
-        log(f"  {run.out}: finished earlier, reused")
-    else:
-        carry, history, wall, epochs_run, compile_s = run.train(progress=progress, stop_after=stop_after)
-        if int(np.asarray(carry.epoch)[0]) < run.config.task.epochs:
-            return None
-        res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, wall, epochs_run,
-                            compile_s)
-    t = res["timing"]
-    return res, {"reused": reused, "train_wall_s": t["train_wall_s_this_invocation"],
-                 "epochs_run": t["epochs_run_this_invocation"], "compile_s": t["compile_s"],
-                 "network_s": t["epochs_run_this_invocation"] * run.config.task.epoch_duration_s * run.n}
+    done = {g.out: _finished(g) for g in groups}
+    if all(r is not None for r in done.values()):
+        for g in groups:
+            log(f"  {g.out}: finished earlier, reused")
+        return {g.out: (done[g.out], {"reused": True}) for g in groups}
+    first = groups[0]
+    rows, start = [], 0
+    for g in groups:
+        rows.append(slice(start, start + g.n))
+        start += g.n
+    batch = Batch(first.config, [s for g in groups for s in g.seeds],
+                  stack_rows([m for g in groups for m in unstack(g.mps)]),
+                  Target(*(np.concatenate(parts) for parts in zip(*(g.targets for g in groups)))), out,
+                  {"reproduction": [{"folder": os.path.relpath(g.out, out), **g.meta()} for g in groups],
+                   "label": f"{first.config.arm}: {len(groups)} groups, {start} networks"})
+    log(f"training {start} networks of {len(groups)} groups in one batch over {batch.mesh.size} device(s) -> "
+        f"{out / 'checkpoints'}")
+    carry, history, wall, epochs_run, compile_s = batch.train(progress=progress, stop_after=stop_after)
+    if int(parallel.host(carry.epoch)[0]) < first.config.task.epochs:
+        return None
+    trained, naive = batch.test(carry.trained), batch.test(batch.naive())
+    host_carry = parallel.host(carry)
+    results = {}
+    for g, r in zip(groups, rows):
+        part = select(r, trained, naive, history)
+        res = write_outputs(g, part.trained, part.naive, part.history, wall, epochs_run, compile_s)
+        with Checkpointer(g.out / "checkpoints") as ckpt:   # the group's trained networks, for `jaxarm test --from`
+            ckpt.save(g.config.task.epochs, (jax.tree.map(lambda x: x[r], host_carry), part.history),
+                      g.meta() | {"layout": {"padded_networks": g.n}})
+        results[g.out] = res, {"reused": False, "batch_networks": start, "train_wall_s": round(wall, 2),
+                               "epochs_run": epochs_run, "compile_s": round(compile_s, 2)}
+    return results
 
 
 def _epochs_of(sets, what: str) -> int:
@@ -171,22 +196,34 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
     configs = {t: (config(t, epochs_a), config(t, epochs_b) if top_sets else None) for t in targets}  # validate all
     out = Path(out)
     t_start = time.perf_counter()
-    rows, timing_rows = {}, {}
+    groups = {}
     for target in targets:
         cfg_a, cfg_b = configs[target]
-        runs = {"seeds": Run(cfg_a, networks, seed, out / target / "seeds", best)}
+        groups[(target, "seeds")] = Run(cfg_a, networks, seed, out / target / "seeds", best)
         if top_sets:
-            runs["top30"] = SetsRun(cfg_b, seed, out / target / "top30", stack(top_sets))
-        res = {}
-        for mode, run in runs.items():
-            log(f"{arm} arm, {target} target, ({'a' if mode == 'seeds' else 'b'}) {mode}: {run.n} networks, "
-                f"{run.config.task.epochs} x {epoch_s:g} s -> {run.out}")
-            got = _run_one(run, progress, stop_after, log)
-            if got is None:
-                log(f"stopped after {stop_after} epoch(s) of {run.out}; run the same command again to resume")
-                return None
-            res[mode], timing_rows[f"{target}/{mode}"] = got
-        a, b = res["seeds"], res.get("top30")
+            groups[(target, "top30")] = SetsRun(cfg_b, seed, out / target / "top30", stack(top_sets))
+    for (target, mode), run in groups.items():
+        log(f"{arm} arm, {target} target, ({'a' if mode == 'seeds' else 'b'}) {mode}: {run.n} networks, "
+            f"{run.config.task.epochs} x {epoch_s:g} s -> {run.out}")
+    # Every (target, mode) group trains in one batch; groups of another length (--epochs unset and the top sets'
+    # epochs differing from the best set's) form a second batch: a compiled loop has one length.
+    by_epochs: dict[int, list] = {}
+    for key, run in groups.items():
+        by_epochs.setdefault(run.config.task.epochs, []).append(key)
+    got, batches = {}, {}
+    for n_epochs, keys in by_epochs.items():
+        home = out if len(by_epochs) == 1 else out / f"batch-{n_epochs}-epochs"   # its checkpoints/ go here
+        one = _train_together([groups[k] for k in keys], home, progress, stop_after, log)
+        if one is None:
+            log(f"stopped after {stop_after} epoch(s); run the same command again to resume")
+            return None
+        for k in keys:
+            got[k] = one[groups[k].out]
+        batches[f"{n_epochs} epochs"] = next(iter(one.values()))[1]
+    rows = {}
+    for target in targets:
+        a = got[(target, "seeds")][0]
+        b = got[(target, "top30")][0] if top_sets else None
         paper = PAPER_SUCCESS.get(arm, {}).get(target)
         rows[target] = {
             "seeds": a["success_count"], "seeds_n": a["n_networks"],
@@ -200,13 +237,12 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
             "top30_median_min_distance_m": None if b is None else _median_of(b, "min_distance_m"),
             "top30_median_final_distance_m": None if b is None else _median_of(b, "final_distance_m"),
             "paper": paper, "paper_n": PAPER_N if paper is not None else None,
-            "folders": {m: str(Path(target) / m) for m in res},
+            "folders": {m: str(Path(target) / m) for m in (("seeds", "top30") if top_sets else ("seeds",))},
         }
     wall = time.perf_counter() - t_start
-    train_wall = sum(t["train_wall_s"] for t in timing_rows.values())
-    net_s = sum(t["network_s"] for t in timing_rows.values())
-    import jax
-
+    trained = [t for t in batches.values() if not t["reused"]]
+    train_wall = sum(t["train_wall_s"] for t in trained)
+    net_s = sum(t["epochs_run"] * epoch_s * t["batch_networks"] for t in trained)
     table = {
         "arm": arm, "backend": backend, "preset": preset.name, "preset_description": preset.description,
         "preset_arms": list(preset.arms), "preset_provenance": preset.provenance,
@@ -222,14 +258,16 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
                    "network_seconds_trained": net_s,
                    "network_s_per_s": round(net_s / train_wall, 3) if train_wall > 0 else None,
                    "note": "wall_s_this_invocation includes compilation, tests and writing (a rerun that reuses "
-                           "finished folders is short); train_wall_s and network_seconds_trained add up each "
-                           "folder's results.json timing (the training of the invocation that finished it)",
-                   "device": jax.default_backend(), "folders": timing_rows},
+                           "finished folders is short); every group trains in one batch (a second one only for "
+                           "groups of another length): train_wall_s and network_seconds_trained are the batches' "
+                           "training in this invocation",
+                   "device": jax.default_backend(), "layout": parallel.describe(), "batches": batches},
     }
-    out.mkdir(parents=True, exist_ok=True)
-    (out / TABLE_FILE).write_text(json.dumps(table, indent=1) + "\n")
-    log(format_table(table))
-    log(f"-> {out / TABLE_FILE}")
+    if parallel.is_main_process():
+        out.mkdir(parents=True, exist_ok=True)
+        (out / TABLE_FILE).write_text(json.dumps(table, indent=1) + "\n")
+        log(format_table(table))
+        log(f"-> {out / TABLE_FILE}")
     return table
 
 
@@ -287,6 +325,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="network clock step, ms (default 0.25, what every preset was searched with; e.g. 0.1 to "
                          "check that a count does not depend on the step)")
     ap.add_argument("--no-progress", action="store_true")
+    parallel.add_arguments(ap)
     ap.add_argument("--list-presets", action="store_true", help="list the presets, one per line, name first; exit")
     g = ap.add_argument_group("making a preset from a finished `jaxarm evolve` folder")
     g.add_argument("--make-preset", metavar="NAME", help="write a preset NAME.json from --from-search and exit")
@@ -306,6 +345,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
+        parallel.start_from_arguments(args)
         if args.list_presets:
             for name, desc in preset_lib.available(args.preset_dir).items():
                 print(f"{name}  {desc}")

@@ -27,7 +27,9 @@ from typing import Callable, NamedTuple
 
 import jax
 import numpy as np
+from jax.sharding import NamedSharding
 
+from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
 from jaxarm.evolve.checkpoint import SearchCheckpointer
 from jaxarm.evolve.fitness import Fitness
@@ -148,7 +150,7 @@ def plot_convergence(history: dict, path: Path, title: str = "") -> None:
 def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveConfig, out_dir: str | Path, *,
                fitness_meta: dict | None = None, max_chunks: int | None = None,
                reevaluate_seeds: int = 0, reevaluate_fitness: Fitness | Callable | None = None,
-               reevaluate_meta: dict | None = None, log: Callable[[str], None] = print) -> SearchResult:
+               reevaluate_meta: dict | None = None, log: Callable[[str], None] = print, mesh=None) -> SearchResult:
     """Run (or resume) a search, checkpointing and reporting after every chunk; write the result files.
 
     ``fitness``: a :class:`Fitness` or a bare pure function (see :mod:`jaxarm.evolve.fitness`). ``fitness_meta``: a
@@ -161,11 +163,19 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
     (e.g. ``{"targets": ["bottom"], "train_s": 360}``), written to ``top_k.json`` as ``reevaluation``; its
     ``targets`` are part of the re-evaluation's identity (saved results for other targets are not reused). It is
     not part of the checkpointed search, so a finished search can be re-evaluated later.
+
+    ``mesh``: the devices each generation's evaluations are split over (default: every device of every process,
+    :func:`jaxarm.parallel.mesh`). With several processes every one runs this with the same arguments; the search
+    state is replicated, process 0 writes the files and the log.
     """
     fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
+    mesh = parallel.mesh() if mesh is None else mesh
+    if not parallel.is_main_process():
+        log = lambda line: None   # noqa: E731
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    search = make_search(fitness.fn, space, config)
+    search = make_search(fitness.fn, space, config, mesh)
+    everywhere = NamedSharding(mesh, parallel.REPLICATED)
     description = describe(space, config, fitness_meta)
     key = jax.random.PRNGKey(config.seed)
     evals_per_gen = config.population_size * config.seeds_per_candidate
@@ -183,21 +193,25 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
                         if _without_generations(saved_run).get(k) != _without_generations(description)[k]]
                 raise ConfigError(f"{out} holds a checkpoint of a different search (differs in: {', '.join(diff)}); "
                                   f"use another output folder or the same options (only --generations may change)")
-            abstract = jax.eval_shape(lambda k: with_generations(search.init(k), saved_g), key)
+            abstract = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=everywhere),
+                                    jax.eval_shape(lambda k: with_generations(search.init(k), saved_g), key))
             state, meta = ckpt.restore(abstract)
-            done = int(state.generation)
+            done = int(parallel.host(state.generation))
             if done > G:
                 raise ConfigError(f"generations = {G} is fewer than the {done} this search in {out} has done; "
                                   f"ask for at least {done}")
-            state = with_generations(state, G)
+            state = parallel.put(with_generations(parallel.host(state), G), parallel.REPLICATED, mesh)
             costs = meta.get("costs", costs)
             extended = f" (extended from {saved_g} generations)" if saved_g != G else ""
             log(f"resuming from the checkpoint at generation {done}/{G}{extended} in {ckpt.directory}")
         else:
-            state = search.init(key)
+            state = parallel.put(search.init(key), parallel.REPLICATED, mesh)
+
+        def generation(state) -> int:
+            return int(parallel.host(state.generation))
 
         chunks, run_chunk = 0, None
-        while int(state.generation) < G and (max_chunks is None or chunks < max_chunks):
+        while generation(state) < G and (max_chunks is None or chunks < max_chunks):
             if run_chunk is None:   # compiled ahead, so the chunks' rates exclude compilation
                 t0 = time.perf_counter()
                 run_chunk = search.run_chunk.lower(state).compile()
@@ -205,17 +219,17 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
                 costs["compile_s"] = costs["compile_s"] + compile_s
                 log(f"compiled {config.strategy} chunk ({config.chunk_size} generations x {config.population_size} "
                     f"candidates x {config.seeds_per_candidate} seeds, {space.n_dims} dims) in {compile_s:.1f} s")
-            g0 = int(state.generation)
+            g0 = generation(state)
             t0 = time.perf_counter()
             state = jax.block_until_ready(run_chunk(state))
             dt = time.perf_counter() - t0
-            g1 = int(state.generation)
+            g1 = generation(state)
             n_eval = (g1 - g0) * evals_per_gen
             costs["run_s"] += dt
             costs["evaluations"] += n_eval
             chunks += 1
             ckpt.save(state, {"run": description, "costs": costs})
-            h = jax.device_get(state.history)
+            h = parallel.host(state.history)
             failed_chunk = int(np.sum(h.nonfinite_candidates[g0:g1]))
             failed_total = int(np.sum(h.nonfinite_candidates[:g1]))
             rate = n_eval / dt if dt > 0 else float("inf")
@@ -224,28 +238,30 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
             log(f"gen {g1:>{len(str(G))}}/{G} | best {h.best[g1 - 1]:.5g} | median {h.median[g1 - 1]:.5g} | "
                 f"best so far {h.best_so_far[g1 - 1]:.5g} | failed {failed_chunk} (total {failed_total}) | "
                 f"{rate:.3g} eval/s{net} | {dt:.2f} s")
-            _write_outputs(state, space, config, description, costs, fitness, out, plot=False)
+            _write_outputs(parallel.host(state), space, config, description, costs, fitness, out, plot=False)
 
-        finished = int(state.generation) >= G
+        finished = generation(state) >= G
+        host_state = parallel.host(state)
         reevaluation = None
         if finished and reevaluate_seeds > 0:
-            reevaluation = _reevaluate(state, space, config, reevaluate_fitness or fitness, reevaluate_seeds, log,
-                                        out, reevaluate_meta)
-        _write_outputs(state, space, config, description, costs, fitness, out, plot=True, reevaluation=reevaluation,
+            reevaluation = _reevaluate(host_state, space, config, reevaluate_fitness or fitness, reevaluate_seeds, log,
+                                        out, reevaluate_meta, mesh)
+        _write_outputs(host_state, space, config, description, costs, fitness, out, plot=True,
+                       reevaluation=reevaluation,
                        reevaluation_meta=reevaluate_meta if reevaluation is not None else None)
         if finished:
-            best = top_k_table(state, space, reevaluation)
+            best = top_k_table(host_state, space, reevaluation)
             if best:
                 again = best[0].get("reevaluation", {}).get("fitness")
                 again = f"re-evaluated {again:.5g}, " if again is not None else ""
                 log(f"done: best candidate: {again}search fitness {best[0]['fitness']:.5g} "
                     f"(generation {best[0]['generation']}); results in {out}")
         else:
-            log(f"stopped at generation {int(state.generation)}/{G}; run again with the same options to resume")
-    return SearchResult(state, finished, out)
+            log(f"stopped at generation {generation(state)}/{G}; run again with the same options to resume")
+    return SearchResult(host_state, finished, out)
 
 
-def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict | None = None):
+def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict | None = None, mesh=None):
     """Re-evaluate the archive one candidate at a time (one compiled call each, the same fresh keys for all), with
     a progress line per candidate and each result saved to ``reevaluation.json`` as it comes.
 
@@ -258,8 +274,8 @@ def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict
     units = np.asarray(state.archive.unit, np.float32)[filled]
     if units.shape[0] == 0:
         return None
-    reevaluate = make_reevaluate(fitness.fn, space, seeds, config.seed_reduce)
-    key = jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM)
+    reevaluate = make_reevaluate(fitness.fn, space, seeds, config.seed_reduce, mesh)
+    key = np.asarray(jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM))
     unit_rows = [[float(x) for x in u] for u in units]
     identity = {"seeds": seeds, "seed_reduce": config.seed_reduce,
                 "network_seconds_per_eval": fitness.network_seconds_per_eval}
@@ -281,14 +297,16 @@ def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict
         log(f"resuming the re-evaluation: {n_reused}/{units.shape[0]} candidates done ({path})")
 
     def save():
-        _write_json(path, {**identity, "units": unit_rows, "candidates": [c for c in done if c is not None]})
+        if parallel.is_main_process():
+            _write_json(path, {**identity, "units": unit_rows, "candidates": [c for c in done if c is not None]})
 
     t_all = time.perf_counter()
     for i in range(units.shape[0]):
         if done[i] is not None:
             continue
         t0 = time.perf_counter()
-        r = jax.device_get(jax.block_until_ready(reevaluate(key, units[i:i + 1])))
+        args = (key, units[i:i + 1]) if mesh is None else parallel.put((key, units[i:i + 1]), parallel.REPLICATED, mesh)
+        r = parallel.host(jax.block_until_ready(reevaluate(*args)))
         done[i] = {"unit": unit_rows[i], "fitness": _num(r.fitness[0]),
                    "fitness_per_seed": [_num(x) for x in r.fitness_per_seed[0]],
                    "metrics": {m: _num(v[0]) for m, v in r.metrics.items()}}
@@ -315,6 +333,9 @@ def _fmt(x) -> str:
 
 def _write_outputs(state, space, config, description, costs, fitness, out: Path, plot: bool,
                    reevaluation=None, reevaluation_meta: dict | None = None) -> None:
+    """history.json, top_k.json and (``plot``) convergence.png from a host copy of the state (process 0 only)."""
+    if not parallel.is_main_process():
+        return
     history = history_table(state, space)
     evals = costs["evaluations"]
     summary = {

@@ -292,12 +292,15 @@ def _normalise(fitness_fn: Callable) -> Callable:
     return call
 
 
-def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) -> Search:
+def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig, mesh=None) -> Search:
     """Build the pure ``init`` and ``run_chunk`` of a search of ``fitness_fn`` over ``space``.
 
     ``fitness_fn(key, metaparams) -> fitness | (fitness, metrics)``, lower is better (see :mod:`jaxarm.evolve.fitness`).
-    The same (fitness function object, space, config) returns the same :class:`Search`, so a search run again in
-    the same process (resumed, or re-run in a notebook) reuses its compiled chunk.
+    ``mesh``: a device mesh (:func:`jaxarm.parallel.mesh`) over which each generation's candidates x seeds are split
+    (``shard_map``; padded to a multiple of its devices, the padding's fitness dropped); the strategy's ``ask`` and
+    ``tell`` run replicated on every device, so only the fitness crosses devices. None: one device.
+    The same (fitness function object, space, config, mesh) returns the same :class:`Search`, so a search run again
+    in the same process (resumed, or re-run in a notebook) reuses its compiled chunk.
     """
     if not isinstance(space, SearchSpace):
         raise TypeError(f"space must be a SearchSpace, got {type(space).__name__}")
@@ -306,11 +309,36 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) 
     try:
         hash(fitness_fn)
     except TypeError:
-        return _make_search(fitness_fn, space, config)
-    return _make_search_cached(fitness_fn, space, config)
+        return _make_search(fitness_fn, space, config, mesh)
+    return _make_search_cached(fitness_fn, space, config, mesh)
 
 
-def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig) -> Search:
+def sharded_map(fn: Callable, mesh, batch_size: int = 0) -> Callable:
+    """``fn`` mapped over the leading axis of its arguments: ``vmap`` (or ``lax.map`` in chunks of ``batch_size``),
+    split over ``mesh`` when one is given. Rows are padded to a multiple of the devices (with copies of the last
+    row) and the padding is dropped from the result."""
+    def local(*args):
+        if batch_size:
+            return lax.map(lambda a: fn(*a), args, batch_size=batch_size)
+        return jax.vmap(fn)(*args)
+
+    if mesh is None:
+        return local
+
+    from jaxarm import parallel
+
+    def mapped(*args):
+        n = jax.tree.leaves(args)[0].shape[0]
+        n_pad = parallel.padded_size(n, mesh)
+        pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], n_pad - n, axis=0)]) if n_pad > n else x  # noqa: E731
+        out = jax.shard_map(local, mesh=mesh, in_specs=parallel.BATCHED, out_specs=parallel.BATCHED,
+                            check_vma=False)(*jax.tree.map(pad, args))
+        return jax.tree.map(lambda x: x[:n], out)
+
+    return mapped
+
+
+def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig, mesh=None) -> Search:
     from evosax.algorithms.population_based.base import PopulationBasedAlgorithm
 
     n, P, S, K, G = space.n_dims, config.population_size, config.seeds_per_candidate, config.top_k, config.generations
@@ -362,11 +390,8 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig)
         # serves all P * S networks with one spike list (jaxarm.network.synapses).
         flat_keys = keys.reshape((P * S,) + keys.shape[2:])
         flat_mps = jax.tree_util.tree_map(lambda x: jnp.repeat(x, S, axis=0), mps)
-        if config.eval_batch_size in (0, P):
-            f, metrics = jax.vmap(evaluate_one)(flat_keys, flat_mps)
-        else:
-            f, metrics = lax.map(lambda a: evaluate_one(*a), (flat_keys, flat_mps),
-                                 batch_size=config.eval_batch_size * S)
+        batch = 0 if config.eval_batch_size in (0, P) else config.eval_batch_size * S
+        f, metrics = sharded_map(evaluate_one, mesh, batch)(flat_keys, flat_mps)
         f, metrics = f.reshape(P, S), {m: v.reshape(P, S) for m, v in metrics.items()}   # (P, S), {name: (P, S)}
         fitness, bad = _combine_seeds(f, config.seed_reduce)
         return fitness, jnp.sum(bad, axis=1), {m: jnp.mean(v, axis=1) for m, v in metrics.items()}
@@ -444,9 +469,11 @@ class Reevaluation(NamedTuple):
     metrics: dict                  # name -> (K,), mean over seeds
 
 
-def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_reduce: str = "mean") -> Callable:
+def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_reduce: str = "mean",
+                    mesh=None) -> Callable:
     """``reevaluate(key, units (K, n_dims)) -> Reevaluation``: each candidate with the same ``seeds`` fresh keys
-    (split from ``key``), one candidate at a time (``lax.map``) with its seeds in one ``vmap``.
+    (split from ``key``), one candidate at a time (``lax.map``) with its seeds in one ``vmap`` (split over ``mesh``
+    when given).
 
     The search ranks candidates by noisy fitness, so its best are partly its luckiest; evaluating the top-k again
     with new seeds (and, for the reaching task, the full training length) gives the final ranking.
@@ -460,7 +487,8 @@ def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_r
         keys = jax.random.split(raw_key(key), seeds)
 
         def one(u):
-            return jax.vmap(evaluate_one, in_axes=(0, None))(keys, space.to_metaparams(u))
+            mps = jax.tree.map(lambda x: jnp.broadcast_to(x, (seeds,) + jnp.shape(x)), space.to_metaparams(u))
+            return sharded_map(evaluate_one, mesh)(keys, mps)
 
         f, metrics = lax.map(one, jnp.asarray(units, jnp.float32))   # (K, S), {name: (K, S)}
         fitness, _ = _combine_seeds(f, seed_reduce)
