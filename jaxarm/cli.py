@@ -40,8 +40,37 @@ def main(argv: list[str] | None = None) -> int:
     if name not in COMMANDS:
         print(f"jaxarm: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
         return 2
+    if name in SCALE_OUT_COMMANDS:
+        error = _start_devices(name, rest)
+        if error:
+            return error
     module, func = COMMANDS[name][0].split(":")
     return int(getattr(importlib.import_module(module), func)(rest) or 0)
+
+
+#: Commands that split their batch over every device of every process (``--devices``, ``--coordinator``, ...).
+SCALE_OUT_COMMANDS = ("train", "test", "evolve", "reproduce")
+
+
+def _start_devices(name: str, argv: list[str]) -> int:
+    """Set up this process's devices (and join the other processes) before the command's module is imported: some
+    libraries (evosax) compute at import, after which JAX's devices are fixed. Returns an exit code on bad options."""
+    import argparse
+
+    from jaxarm import parallel
+    from jaxarm.config.validate import ConfigError
+
+    ap = argparse.ArgumentParser(add_help=False)
+    parallel.add_arguments(ap)
+    try:
+        known, _ = ap.parse_known_args(argv)
+        parallel.start_from_arguments(known)
+    except SystemExit as e:   # argparse already said what is wrong with the option
+        return int(e.code or 2)
+    except ConfigError as e:
+        print(f"jaxarm {name}: {e}", file=sys.stderr)
+        return 2
+    return 0
 
 
 if __name__ == "__main__":

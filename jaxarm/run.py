@@ -70,16 +70,17 @@ def network_config(source) -> NetworkConfig:
 class Batch:
     """Networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and targets ``targets[i]`` (stacked), trained
     with one configuration into ``out`` (checkpoints in ``out/checkpoints``). ``description``: the JSON identity of
-    the batch (what a checkpoint must match to be resumed)."""
+    the batch (what a checkpoint must match to be resumed). ``mesh``: the devices (default: all of them)."""
 
-    def __init__(self, config: LoopConfig, seeds, mps: MetaParams, targets: Target, out: Path, description: dict):
+    def __init__(self, config: LoopConfig, seeds, mps: MetaParams, targets: Target, out: Path, description: dict,
+                 mesh=None):
         self.config, self.out = config, Path(out)
         self.seeds = [int(s) for s in seeds]
         self.n = len(self.seeds)
         if self.n < 1:
             raise ValueError("a batch needs at least one network")
         self.mps, self.targets, self.description = mps, targets, description
-        self.mesh = parallel.mesh()
+        self.mesh = parallel.mesh() if mesh is None else mesh
         self.n_padded = parallel.padded_size(self.n, self.mesh)
         self.fns, self.init_fn, self.epoch_fn, self.test_fn = compiled(config, self.mesh)
 
@@ -248,14 +249,14 @@ class Batch:
 class Run(Batch):
     """One target: networks ``seed .. seed + n - 1`` trained with one metaparameter set ``mp``."""
 
-    def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams):
+    def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams, mesh=None):
         self.mp, self.seed = mp, seed
         super().__init__(config, range(seed, seed + n_networks), stack_rows([mp] * n_networks),
                          Target.stack([config.task.target] * n_networks), out,
                          {"arm": config.arm, "backend": config.backend, "target": config.task.target,
                           "networks": n_networks, "seed": seed, "epochs": config.task.epochs,
                           "epoch_s": config.task.epoch_duration_s, "metaparams": mp.to_dict(),
-                          "label": f"{config.arm}/{config.task.target}"})
+                          "label": f"{config.arm}/{config.task.target}"}, mesh)
 
     def meta(self) -> dict:
         return {k: v for k, v in super().meta().items() if k != "label"}
@@ -269,14 +270,14 @@ class SetsRun(Batch):
     is such a run. ``meta()["metaparams"]`` is the list of the N sets.
     """
 
-    def __init__(self, config: LoopConfig, seed: int, out: Path, mps: MetaParams):
+    def __init__(self, config: LoopConfig, seed: int, out: Path, mps: MetaParams, mesh=None):
         n = int(np.shape(mps.learn_rate)[0])
         self.mp, self.seed = mps, seed
         super().__init__(config, range(seed, seed + n), mps, Target.stack([config.task.target] * n), out,
                          {"arm": config.arm, "backend": config.backend, "target": config.task.target,
                           "networks": n, "seed": seed, "epochs": config.task.epochs,
                           "epoch_s": config.task.epoch_duration_s, "metaparams": [m.to_dict() for m in unstack(mps)],
-                          "label": f"{config.arm}/{config.task.target}"})
+                          "label": f"{config.arm}/{config.task.target}"}, mesh)
 
     def meta(self) -> dict:
         return {k: v for k, v in super().meta().items() if k != "label"}

@@ -1,7 +1,15 @@
-"""Helpers shared by the tests."""
+"""Helpers shared by the tests, and the test process's devices.
+
+The whole suite runs on two CPU devices (as `jaxarm` commands do on a 2-core machine): every batch command splits
+its networks over both, and tests can compare a one-device mesh with the two-device one in one process.
+"""
 from __future__ import annotations
 
 from pathlib import Path
+
+import jax
+
+jax.config.update("jax_num_cpu_devices", 2)
 
 
 def truncate_newest_checkpoint(checkpoints: Path) -> Path:

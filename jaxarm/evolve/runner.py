@@ -27,7 +27,6 @@ from typing import Callable, NamedTuple
 
 import jax
 import numpy as np
-from jax.sharding import NamedSharding
 
 from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
@@ -175,7 +174,6 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     search = make_search(fitness.fn, space, config, mesh)
-    everywhere = NamedSharding(mesh, parallel.REPLICATED)
     description = describe(space, config, fitness_meta)
     key = jax.random.PRNGKey(config.seed)
     evals_per_gen = config.population_size * config.seeds_per_candidate
@@ -193,29 +191,27 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
                         if _without_generations(saved_run).get(k) != _without_generations(description)[k]]
                 raise ConfigError(f"{out} holds a checkpoint of a different search (differs in: {', '.join(diff)}); "
                                   f"use another output folder or the same options (only --generations may change)")
-            abstract = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=everywhere),
-                                    jax.eval_shape(lambda k: with_generations(search.init(k), saved_g), key))
+            abstract = jax.eval_shape(lambda k: with_generations(search.init(k), saved_g), key)
             state, meta = ckpt.restore(abstract)
-            done = int(parallel.host(state.generation))
+            done = int(state.generation)
             if done > G:
                 raise ConfigError(f"generations = {G} is fewer than the {done} this search in {out} has done; "
                                   f"ask for at least {done}")
-            state = parallel.put(with_generations(parallel.host(state), G), parallel.REPLICATED, mesh)
+            state = with_generations(state, G)
             costs = meta.get("costs", costs)
             extended = f" (extended from {saved_g} generations)" if saved_g != G else ""
             log(f"resuming from the checkpoint at generation {done}/{G}{extended} in {ckpt.directory}")
         else:
-            state = parallel.put(search.init(key), parallel.REPLICATED, mesh)
+            state = search.init(key)
 
         def generation(state) -> int:
-            return int(parallel.host(state.generation))
+            return int(state.generation)
 
         chunks, run_chunk = 0, None
         while generation(state) < G and (max_chunks is None or chunks < max_chunks):
             if run_chunk is None:   # compiled ahead, so the chunks' rates exclude compilation
-                t0 = time.perf_counter()
-                run_chunk = search.run_chunk.lower(state).compile()
-                compile_s = time.perf_counter() - t0
+                compile_s = search.compile(state)
+                run_chunk = search.run_chunk
                 costs["compile_s"] = costs["compile_s"] + compile_s
                 log(f"compiled {config.strategy} chunk ({config.chunk_size} generations x {config.population_size} "
                     f"candidates x {config.seeds_per_candidate} seeds, {space.n_dims} dims) in {compile_s:.1f} s")
@@ -228,8 +224,9 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
             costs["run_s"] += dt
             costs["evaluations"] += n_eval
             chunks += 1
-            ckpt.save(state, {"run": description, "costs": costs})
-            h = parallel.host(state.history)
+            # the state is the same on every process: saved from host copies (orbax writes them once)
+            ckpt.save(jax.device_get(state), {"run": description, "costs": costs})
+            h = jax.device_get(state.history)
             failed_chunk = int(np.sum(h.nonfinite_candidates[g0:g1]))
             failed_total = int(np.sum(h.nonfinite_candidates[:g1]))
             rate = n_eval / dt if dt > 0 else float("inf")
@@ -238,10 +235,10 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
             log(f"gen {g1:>{len(str(G))}}/{G} | best {h.best[g1 - 1]:.5g} | median {h.median[g1 - 1]:.5g} | "
                 f"best so far {h.best_so_far[g1 - 1]:.5g} | failed {failed_chunk} (total {failed_total}) | "
                 f"{rate:.3g} eval/s{net} | {dt:.2f} s")
-            _write_outputs(parallel.host(state), space, config, description, costs, fitness, out, plot=False)
+            _write_outputs(jax.device_get(state), space, config, description, costs, fitness, out, plot=False)
 
         finished = generation(state) >= G
-        host_state = parallel.host(state)
+        host_state = jax.device_get(state)
         reevaluation = None
         if finished and reevaluate_seeds > 0:
             reevaluation = _reevaluate(host_state, space, config, reevaluate_fitness or fitness, reevaluate_seeds, log,

@@ -36,11 +36,13 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import time
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from flax import struct
 from jax import lax
@@ -200,13 +202,39 @@ class SearchState:
 
 
 class Search(NamedTuple):
-    """What :func:`make_search` returns."""
+    """What :func:`make_search` returns.
 
-    init: Callable            # key -> SearchState
-    run_chunk: Callable       # SearchState -> SearchState (jitted)
+    A generation is three compiled programs: ``ask`` (the strategy proposes a population; one device), ``evaluate``
+    (every candidate x seed trains and is tested; split over the device mesh) and ``tell`` (the strategy, history and
+    archive take the fitness; one device). The strategy's programs are compiled alone, so their arithmetic, and the
+    whole search, is bit for bit the same on one device, many, or many processes (compiled into one program with the
+    sharded evaluation, XLA fused the strategy's sums differently per layout and the searches drifted apart).
+    """
+
+    init: Callable            # key -> SearchState (jitted)
+    run_chunk: Callable       # SearchState -> SearchState: chunk_size generations (the generations left, at most)
+    ask: Callable             # jitted: SearchState -> (population (P, n), strategy state, evaluation key)
+    evaluate: Callable        # jitted over the mesh: (key, population) -> (fitness (P,), failed evals (P,), metrics)
+    tell: Callable            # jitted: (SearchState, population, strategy state, fitness, failed, metrics) -> state
     config: EvolveConfig
     space: SearchSpace
     metric_names: tuple       # names of the fitness's reported metrics
+    mesh: object = None
+
+    def compile(self, state: SearchState) -> float:
+        """Compile ``ask``, ``evaluate`` and ``tell`` for ``state`` ahead of the first generation; seconds taken."""
+        t0 = time.perf_counter()
+        population, es_state, key = jax.eval_shape(self.ask, state)
+        self.ask.lower(state).compile()
+        on_mesh = (key, population)
+        if self.mesh is not None:   # what run_chunk hands the evaluation: whole arrays on the mesh
+            whole = jax.sharding.NamedSharding(self.mesh, jax.sharding.PartitionSpec())
+            on_mesh = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=whole) for x in on_mesh)
+        self.evaluate.lower(*on_mesh).compile()
+        evaluated = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype),
+                                 jax.eval_shape(self.evaluate, *on_mesh))
+        self.tell.lower(state, population, es_state, *evaluated).compile()
+        return time.perf_counter() - t0
 
 
 def with_generations(state: SearchState, generations: int) -> SearchState:
@@ -298,7 +326,8 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig, 
     ``fitness_fn(key, metaparams) -> fitness | (fitness, metrics)``, lower is better (see :mod:`jaxarm.evolve.fitness`).
     ``mesh``: a device mesh (:func:`jaxarm.parallel.mesh`) over which each generation's candidates x seeds are split
     (``shard_map``; padded to a multiple of its devices, the padding's fitness dropped); the strategy's ``ask`` and
-    ``tell`` run replicated on every device, so only the fitness crosses devices. None: one device.
+    ``tell`` run on one device of every process (see :class:`Search`), so only the fitness crosses devices.
+    None: one device.
     The same (fitness function object, space, config, mesh) returns the same :class:`Search`, so a search run again
     in the same process (resumed, or re-run in a notebook) reuses its compiled chunk.
     """
@@ -327,15 +356,27 @@ def sharded_map(fn: Callable, mesh, batch_size: int = 0) -> Callable:
 
     from jaxarm import parallel
 
+    everywhere = jax.sharding.NamedSharding(mesh, parallel.REPLICATED)
+
     def mapped(*args):
         n = jax.tree.leaves(args)[0].shape[0]
         n_pad = parallel.padded_size(n, mesh)
         pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], n_pad - n, axis=0)]) if n_pad > n else x  # noqa: E731
         out = jax.shard_map(local, mesh=mesh, in_specs=parallel.BATCHED, out_specs=parallel.BATCHED,
                             check_vma=False)(*jax.tree.map(pad, args))
-        return jax.tree.map(lambda x: x[:n], out)
+        # gathered whole onto every device: what follows (means over seeds, ...) is computed whole, not in parts
+        return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, everywhere)[:n], out)
 
     return mapped
+
+
+def _on_mesh(tree, mesh):
+    """Host or single-device values as whole (replicated) global arrays on ``mesh`` (unchanged without one)."""
+    if mesh is None:
+        return tree
+    from jaxarm import parallel
+
+    return parallel.put(parallel.host(tree), parallel.REPLICATED, mesh)
 
 
 def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig, mesh=None) -> Search:
@@ -396,29 +437,35 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig,
         fitness, bad = _combine_seeds(f, config.seed_reduce)
         return fitness, jnp.sum(bad, axis=1), {m: jnp.mean(v, axis=1) for m, v in metrics.items()}
 
-    def generation_step(state: SearchState) -> SearchState:
-        key, k_ask, k_eval, k_tell = jax.random.split(state.key, 4)
+    def ask(state: SearchState):
+        """The population to evaluate, the strategy state it came from, and the key of its evaluation."""
+        _, k_ask, k_eval, _ = jax.random.split(state.key, 4)
         like = lambda tree: _like(tree, state.strategy)   # noqa: E731  (cond branches must agree on dtypes)
 
-        def ask():
+        def proposed():
             population, es_state = es.ask(k_ask, state.strategy, params)
             return population, like(es_state)
-
-        def tell(population, told, es_state):
-            return like(es.tell(k_tell, population, told, es_state, params)[0])
 
         # evosax initialises a population-based strategy from an *evaluated* population: its generation 0 evaluates
         # the first population (held by the placeholder state of init) and calls init instead of ask/tell.
         first = population_based & (state.generation == 0)
-        population, es_state = (lax.cond(first, lambda: (state.strategy.population, state.strategy), ask)
-                                if population_based else ask())
-        population = jnp.clip(population, 0.0, 1.0)
-        fitness, bad_evals, metrics = evaluate(k_eval, population)
+        population, es_state = (lax.cond(first, lambda: (state.strategy.population, state.strategy), proposed)
+                                if population_based else proposed())
+        return jnp.clip(population, 0.0, 1.0), es_state, k_eval
+
+    def tell(state: SearchState, population, es_state, fitness, bad_evals, metrics) -> SearchState:
+        key, _, _, k_tell = jax.random.split(state.key, 4)
+        like = lambda tree: _like(tree, state.strategy)   # noqa: E731
+        first = population_based & (state.generation == 0)
         failed = jnp.isnan(fitness)
         finite = jnp.where(failed, jnp.nan, fitness)
         told = rank_failures_last(fitness)
-        es_state = (lax.cond(first, lambda p, t, s: like(es.init(k_tell, p, t, params)), tell, population, told, es_state)
-                    if population_based else tell(population, told, es_state))
+
+        def told_to(population, told, es_state):
+            return like(es.tell(k_tell, population, told, es_state, params)[0])
+
+        es_state = (lax.cond(first, lambda p, t, s: like(es.init(k_tell, p, t, params)), told_to, population, told,
+                             es_state) if population_based else told_to(population, told, es_state))
 
         g = state.generation
         rankable = jnp.where(failed, jnp.inf, fitness)
@@ -444,18 +491,27 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig,
             metrics_mean={m: h.metrics_mean[m].at[g].set(jnp.nanmean(metrics[m])) for m in metric_names},
         )
         new = SearchState(generation=g + 1, key=key, strategy=es_state, history=history, archive=archive)
-        return _like(new, state)   # evosax may return weak-typed scalars; the carry's types must not change
+        return _like(new, state)   # evosax may return weak-typed scalars; the state's types must not change
 
-    def scan_body(state, _):
-        state = lax.cond(state.generation < G, generation_step, lambda s: s, state)
-        return state, None
+    ask_jit, tell_jit, evaluate_jit = jax.jit(ask), jax.jit(tell), jax.jit(evaluate)
 
-    @jax.jit
     def run_chunk(state: SearchState) -> SearchState:
-        return lax.scan(scan_body, state, None, length=config.chunk_size)[0]
+        """Up to ``chunk_size`` generations (none past ``generations``). ``state`` lives on one device of each
+        process (every process holds the same); only the evaluation spans the mesh."""
+        for _ in range(config.chunk_size):
+            if int(np.asarray(jax.device_get(state.generation))) >= G:
+                break
+            population, es_state, k_eval = ask_jit(state)
+            evaluated = evaluate_jit(*_on_mesh((k_eval, population), mesh))
+            if mesh is not None:
+                from jaxarm import parallel
 
-    return Search(init=jax.jit(init), run_chunk=run_chunk, config=config, space=space,
-                  metric_names=metric_names)
+                evaluated = parallel.host(evaluated)
+            state = tell_jit(state, population, es_state, *evaluated)
+        return state
+
+    return Search(init=jax.jit(init), run_chunk=run_chunk, ask=ask_jit, evaluate=evaluate_jit, tell=tell_jit,
+                  config=config, space=space, metric_names=metric_names, mesh=mesh)
 
 
 _make_search_cached = functools.lru_cache(maxsize=16)(_make_search)

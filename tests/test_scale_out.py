@@ -1,0 +1,105 @@
+"""Layout-independent results: one device, two devices, two processes on 127.0.0.1 give the same bits, and a batch
+padded to the device count never reports its padding."""
+import json
+import os
+import socket
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import pytest
+from jax.sharding import AxisType, Mesh
+
+from jaxarm.learning.metaparams import MetaParams
+from jaxarm.loop import LoopConfig
+from jaxarm.task.config import TaskConfig
+
+TINY = LoopConfig(arm="simple", task=TaskConfig(epochs=2, epoch_duration_s=0.3, test_duration_s=0.2))
+
+
+def one_device_mesh():
+    return Mesh(np.asarray(jax.devices()[:1]), ("batch",), axis_types=(AxisType.Auto,))
+
+
+def test_the_suite_runs_on_two_devices():
+    assert jax.device_count() == 2
+
+
+def test_an_odd_batch_padded_over_two_devices_equals_one_device(tmp_path):
+    from jaxarm.experiment import write_outputs
+    from jaxarm.run import Run
+
+    mp = MetaParams.original()
+    results = {}
+    for name, mesh in (("two", None), ("one", one_device_mesh())):
+        run = Run(TINY, 3, 5, tmp_path / name, mp, mesh=mesh)
+        assert run.n_padded == (4 if name == "two" else 3)
+        carry, history, *_ = run.train(progress=False)
+        trained, naive = run.test(carry.trained), run.test(run.naive())
+        assert trained.hand_m.shape[0] == 3 and history.rewards.shape == (2, 3)
+        results[name] = write_outputs(run, trained, naive, history, 1.0, 2)
+    a, b = results["two"], results["one"]
+    assert a["n_networks"] == 3 and [n["seed"] for n in a["networks"]] == [5, 6, 7]
+    for key in ("networks", "naive", "history", "success_count", "test_rates_hz"):
+        assert a[key] == b[key], key
+    ta, tb = (np.load(tmp_path / n / "trajectories.npz") for n in ("two", "one"))
+    for k in ta.files:
+        np.testing.assert_array_equal(ta[k], tb[k], err_msg=k)
+
+
+def test_a_run_checkpointed_on_two_devices_resumes_on_one(tmp_path):
+    from jaxarm.run import Run
+
+    mp = MetaParams.original()
+    full = Run(TINY, 3, 0, tmp_path / "full", mp, mesh=one_device_mesh()).train(progress=False)
+    Run(TINY, 3, 0, tmp_path / "moved", mp).train(progress=False, stop_after=1)          # 2 devices, padded to 4
+    resumed = Run(TINY, 3, 0, tmp_path / "moved", mp, mesh=one_device_mesh()).train(progress=False)
+    assert resumed[3] == 1
+    for x, y in zip(jax.tree.leaves(full[1]), jax.tree.leaves(resumed[1])):
+        np.testing.assert_array_equal(x, y)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def two_processes(args: list[str], out, tmp_path) -> None:
+    """The same command in two processes joined through a coordinator on 127.0.0.1 (one CPU device each)."""
+    port = free_port()
+    env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(tmp_path / "xla-cache"),
+               JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0", JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES="0")
+    procs = [subprocess.Popen([sys.executable, "-m", "jaxarm.cli", *args, "--out", str(out), "--devices", "1",
+                               "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2", "--process-id", str(i)],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+             for i in range(2)]
+    logs = [p.communicate(timeout=600)[0] for p in procs]
+    for p, log in zip(procs, logs):
+        assert p.returncode == 0, log[-3000:]
+
+
+def test_two_processes_train_and_search_like_one(tmp_path):
+    """`jaxarm train` and a 2-generation `jaxarm evolve` in two processes on 127.0.0.1 against this process (two
+    devices): identical results.json networks, trajectories, search history and top-k."""
+    from jaxarm.cli import main
+
+    train = ["train", "--arm", "simple", "--target", "left", "--networks", "3", "--epochs", "2", "--epoch-s", "0.3",
+             "--test-s", "0.2", "--seed", "0", "--no-progress"]
+    evolve = ["evolve", "--fitness", "reaching-shortfall", "--arm", "simple", "--targets", "left", "--train-s", "0.3",
+              "--population", "4", "--generations", "2", "--chunk", "1", "--seeds-per-candidate", "1", "--top-k", "3"]
+    for args, name in ((train, "train"), (evolve, "evolve")):
+        assert main([*args, "--out", str(tmp_path / f"{name}-one")]) == 0
+        two_processes(args, tmp_path / f"{name}-two", tmp_path)
+    a, b = (json.loads((tmp_path / f"train-{n}" / "results.json").read_text()) for n in ("one", "two"))
+    assert a["networks"] == b["networks"] and a["naive"] == b["naive"] and a["history"] == b["history"]
+    assert b["timing"]["layout"]["processes"] == 2
+    ta, tb = (np.load(tmp_path / f"train-{n}" / "trajectories.npz") for n in ("one", "two"))
+    for k in ta.files:
+        np.testing.assert_array_equal(ta[k], tb[k], err_msg=k)
+    for f in ("history.json", "top_k.json"):
+        ha, hb = (json.loads((tmp_path / f"evolve-{n}" / f).read_text()) for n in ("one", "two"))
+        if f == "history.json":
+            ha, hb = ha["history"], hb["history"]
+        assert ha == hb, f
