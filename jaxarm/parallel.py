@@ -54,14 +54,17 @@ def _cluster_detected() -> bool:
     return slurm or ompi
 
 
+_started = False
+
+
 def start(devices: int | None = None, coordinator: str | None = None, num_processes: int | None = None,
           process_id: int | None = None) -> None:
     """Configure this process before JAX computes anything: ``devices`` CPU host devices (default
     :func:`usable_cores`), and, with a coordinator (or a detected SLURM / Open MPI job, or ``JAX_COORDINATOR_ADDRESS``),
     join the other processes through ``jax.distributed`` with gloo CPU collectives.
 
-    Called after JAX has already computed (a notebook, a test calling a command's ``main``), the device count cannot
-    change any more: the devices JAX has are used and ``devices`` is ignored.
+    Called after JAX has already computed (a notebook, a test calling a command's ``main``), or a second time, the
+    device count cannot change any more: the devices JAX has are used and ``devices`` is ignored.
     """
     from jax._src import xla_bridge
 
@@ -78,8 +81,10 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
             raise ConfigError(f"--process-id = {process_id}: must be in [0, {num_processes - 1}]")
         if ":" not in coordinator:
             raise ConfigError(f"--coordinator = {coordinator!r}: expected HOST:PORT")
-    if xla_bridge.backends_are_initialized():
+    global _started
+    if _started or xla_bridge.backends_are_initialized():
         return
+    _started = True
     jax.config.update("jax_num_cpu_devices", devices or usable_cores())
     distributed = all(explicit) and num_processes > 1
     if distributed or _cluster_detected() or os.environ.get("JAX_COORDINATOR_ADDRESS"):
