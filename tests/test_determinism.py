@@ -10,6 +10,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 SCRIPT = textwrap.dedent("""
     import hashlib, json
     import jax, jax.numpy as jnp, numpy as np
@@ -56,6 +58,7 @@ def run(threads: int, xla_single_thread: bool) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_two_fresh_processes_with_different_thread_counts_agree_bit_for_bit():
     one, two = run(1, True), run(2, False)
     assert (one.pop("simple_kernel_threads"), two.pop("simple_kernel_threads")) == (1, 2)

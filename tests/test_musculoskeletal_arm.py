@@ -91,10 +91,12 @@ def test_joint_limits_hold_under_maximal_excitation(fast):
     assert worst[0] < np.radians(3.6) and worst[1] < np.radians(2.1), np.degrees(worst)
 
 
-def test_backends_agree_and_are_well_conditioned_on_smooth_inputs(fast, mjx_arm):
-    """20 seeds of smooth random excitation (1 s): fast and MJX within 1 deg of each other, and moving the start
-    shoulder angle by 1e-4 rad moves either path by < 1 deg (with one 1 ms muscle step per arm step the backends
-    differed by 6 deg and a 1e-4 rad start moved a path by 7 deg: experiments/arm_convergence.py)."""
+@pytest.mark.parametrize("seeds", [pytest.param(range(7, 11), id="4-seeds"),
+                                   pytest.param(range(7, 27), id="20-seeds", marks=pytest.mark.slow)])
+def test_backends_agree_and_are_well_conditioned_on_smooth_inputs(fast, mjx_arm, seeds):
+    """Seeds of smooth random excitation (1 s; 20 in the slow suite): fast and MJX within 1 deg of each other, and
+    moving the start shoulder angle by 1e-4 rad moves either path by < 1 deg (with one 1 ms muscle step per arm step
+    the backends differed by 6 deg and a 1e-4 rad start moved a path by 7 deg: experiments/arm_convergence.py)."""
     import sys
     from pathlib import Path
 
@@ -102,7 +104,7 @@ def test_backends_agree_and_are_well_conditioned_on_smooth_inputs(fast, mjx_arm)
     from arm_convergence import paths
     from jaxarm.arm.inputs import smooth_random_excitations
 
-    us = np.stack([smooth_random_excitations(seed) for seed in range(7, 27)])
+    us = np.stack([smooth_random_excitations(seed) for seed in seeds])
     q0 = np.array([0.62, 1.53])
     runs = {name: (paths(arm, q0, us), paths(arm, q0 + [1e-4, 0.0], us)) for name, arm in
             (("fast", fast), ("mjx", mjx_arm))}
@@ -120,7 +122,8 @@ def test_vmap_over_256_arms(fast):
     assert float(jnp.std(q[:, -1, 0])) > 0  # different inputs, different arms
 
 
-@pytest.mark.parametrize("backend", ["fast", pytest.param("mjx", marks=pytest.mark.slow)])  # MJX: ~100 s compile
+@pytest.mark.slow   # compile-heavy (~10 s fast, ~100 s MJX)
+@pytest.mark.parametrize("backend", ["fast", "mjx"])  # MJX: ~100 s compile
 def test_gradient_through_100_steps_is_finite(backend, fast, mjx_arm):
     arm = fast if backend == "fast" else mjx_arm
 

@@ -60,6 +60,7 @@ def test_batched_run_matches_xla(summation, threshold_test, crossing):
     assert int(np.sum(sn.counters.lost_spikes)) == 0
 
 
+@pytest.mark.slow
 @needs_native
 def test_shared_wiring_nested_vmap_and_unbatched_state():
     nx, nn = pair()

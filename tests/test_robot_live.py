@@ -105,8 +105,7 @@ def test_bad_packets_are_counted_by_reason_and_robot_keeps_running(tmp_path):
         encode([9.0, -7.0], 7, 0.07),               # out of range: rejected
         encode([0.0, 9.0, -9.0, 1.0], 8, 0.08),     # out of range in WAM joints (J2, J3)
         encode([2.0, 1.57], 9, 0.09),               # jump: 1.4 rad in 40 ms
-        encode([0.65, 1.58], 10, 0.10),             # ok
-    ]
+    ]   # 16 datagrams: even if the simulator stalls (a loaded machine) they all fit one tick's judged window
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
             for data in sends:
@@ -117,7 +116,7 @@ def test_bad_packets_are_counted_by_reason_and_robot_keeps_running(tmp_path):
     p = summary["packets"]
     got = {k: p[k] for k in ("ok", "malformed", "truncated", "oversize", "nonfinite", "raw_refused", "duplicate",
                              "out_of_order", "stale", "out_of_range", "jump")}
-    assert got == dict(ok=4, malformed=2, truncated=1, oversize=1, nonfinite=1, raw_refused=2, duplicate=1,
+    assert got == dict(ok=3, malformed=2, truncated=1, oversize=1, nonfinite=1, raw_refused=2, duplicate=1,
                        out_of_order=1, stale=1, out_of_range=2, jump=1)
     assert p["rejected"] == 13 and p["received"] == len(sends) and log["packets_rejected"][-1] == 13
     for kind, n in got.items():                                     # one log column per counter
@@ -130,9 +129,10 @@ def test_bad_packets_are_counted_by_reason_and_robot_keeps_running(tmp_path):
     tau = np.column_stack([log[f"tau{i}"] for i in range(1, 5)])
     assert within_joint_range(wam_q) and np.all(np.isfinite(wam_q))
     assert np.all(np.abs(tau) <= np.array(PhysicsConfig().torque_limit_nm) + 1e-9)
-    # The good targets span shoulder 0.62..0.65 and elbow 1.53..1.58 rad (the timeout hold lands near the last).
-    assert 0.62 - 1e-3 <= log["target_shoulder"].min() and log["target_shoulder"].max() <= 0.65 + 1e-3
-    assert 1.53 - 1e-3 <= log["target_elbow"].min() and log["target_elbow"].max() <= 1.58 + 1e-3
+    # The good targets span shoulder 0.62..0.64 and elbow 1.53..1.57 rad; the timeout hold keeps the robot where it
+    # is, within a few mrad of the last target.
+    assert 0.62 - 1e-3 <= log["target_shoulder"].min() and log["target_shoulder"].max() <= 0.64 + 0.01
+    assert 1.53 - 1e-3 <= log["target_elbow"].min() and log["target_elbow"].max() <= 1.57 + 0.01
 
 
 def test_simulator_refuses_bad_options():
@@ -231,7 +231,10 @@ def test_sigterm_mid_run_writes_a_complete_log_and_exits_0(tmp_path):
     n = summary["ticks"]
     assert 100 < n < 15000 and len(log["t"]) == n                      # stopped early, every tick logged
     np.testing.assert_allclose(np.diff(log["t"]), 0.002, atol=1e-4)
-    assert log["packets_ok"][-1] == 20 == summary["packets"]["ok"]
+    # every datagram accounted for: judged and accepted, or (a simulator stalled by a loaded machine) dropped as
+    # older than the newest 16 of a tick
+    p = summary["packets"]
+    assert log["packets_ok"][-1] == p["ok"] >= 1 and p["ok"] + p["flood_dropped"] == 20 == p["received"]
     assert not (tmp_path / "log.csv.partial").exists()
 
 
