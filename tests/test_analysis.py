@@ -493,3 +493,32 @@ def test_original_bottom_runs_do_not_reach():
     assert not any(r["success"] for r in d["runs"])
     assert all(min(r["distance_cm"]) > 4.0 and r["distance_cm"][0] == pytest.approx(15.12, abs=0.02)
                for r in d["runs"])
+
+
+def test_beside_paper_gives_each_measure_with_the_papers_value_and_ratio(tmp_path):
+    """A path that enters and stays, one that passes through, one that never enters: the after-entry measures
+    average the two that entered (hand-computed), sit beside the paper's musculoskeletal left values, and the ratio
+    is ours / the paper's; the simple arm has no paper values for them."""
+    from jaxarm.analysis import paper as mod
+
+    t = np.arange(101)[:, None] * 0.01
+    start = np.array([0.15, 0.0])
+    stays = start * (1 - np.clip(t / 0.5, 0, 1))                   # 0.3 m/s straight in, then still at the centre
+    through = np.concatenate([0.15 - 0.003 * np.arange(101)[:, None], np.zeros((101, 1))], axis=1)   # 0.3 m/s on
+    never = np.repeat(start[None], 101, axis=0) + 1e-4 * t
+    _fake_run(tmp_path / "ms", "musculoskeletal", "left", [stays, through, never], [never] * 3, [True, True, False])
+    row = mod.beside_paper(mod.target_stats(tmp_path / "ms"))
+    assert {k for k, _ in mod.MEASURES} == set(row)
+    # first entry: the first sample within 4 cm, at x <= 0.04 m: sample 37 for both (0.15 - 0.003 k <= 0.04)
+    d_stays = np.mean(np.abs(stays[37:, 0]))
+    d_through = np.mean(np.abs(through[37:, 0]))
+    dist = row["distance_after_m"]
+    assert dist["n"] == 2 and dist["mean"] == pytest.approx(100 * (d_stays + d_through) / 2, rel=1e-3)   # cm
+    assert dist["paper"] == 3.87 and dist["paper_sd"] == 0.78
+    assert dist["ratio"] == pytest.approx(dist["mean"] / 3.87, rel=1e-3)
+    assert row["speed_after_m_s"]["mean"] == pytest.approx((0.3 * 13 / 63 + 0.3) / 2, rel=1e-2)   # still after 0.5 s
+    assert row["time_inside_s"]["mean"] == pytest.approx((640 + 270) / 2, abs=10)   # ms: 64 and 27 samples inside
+    assert row["jerk_trained"]["paper"] == 0.76 and row["jerk_ratio"]["paper"] == pytest.approx(0.76 / 1.72)
+    _fake_run(tmp_path / "simple", "simple", "left", [stays], [never], [True])
+    simple = mod.beside_paper(mod.target_stats(tmp_path / "simple"))
+    assert simple["distance_after_m"]["paper"] is None and simple["distance_after_m"]["ratio"] is None

@@ -291,3 +291,34 @@ def test_musculoskeletal_reproduce_with_the_shipped_preset_then_retest(tmp_path)
     assert main(["test", "--from", str(out / "left" / "seeds"), "--test-s", "0.2"]) == 0
     again = json.loads((out / "left" / "seeds" / "test" / "results.json").read_text())
     assert again["networks"] == seeds["networks"]
+
+
+def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
+    """Without --preset, each (target, mode) runs the preset, epochs and settings of the README's headline row
+    (read from the shipped preset files), says so first, and the table records it with the paper's measures."""
+    from jaxarm.evolve.reproduce import DEFAULT_PROTOCOL, _plan
+
+    plan = _plan(None, "simple", None, None, 30, {}, presets.PRESET_DIR)
+    assert {t: {m: (s["preset"].name, s["epochs"], s["set"]) for m, s in modes.items()} for t, modes in plan.items()} \
+        == {"left": {"seeds": ("simple-cmaes-left-shoulder", 6, {}), "top30": ("simple-cmaes-left-local", 6, {})},
+            "bottom": {"seeds": ("simple-cmaes-shortfall-long", 16, {"explore_tot": 8.0}),
+                       "top30": ("simple-cmaes-bottom-local", 16, {})}}
+    assert all(float(m.explore_tot) == 8.0 for m in plan["bottom"]["seeds"]["sets"])
+    assert len(plan["left"]["top30"]["sets"]) == 30
+    ms = _plan(None, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
+    assert {(s["preset"].name, s["epochs"]) for modes in ms.values() for s in modes.values()} \
+        == {("msarm-cmaes-2cm-rerank", 12)} and list(ms) == ["left", "bottom"]
+    assert set(DEFAULT_PROTOCOL) == {"simple", "musculoskeletal"}
+    out = tmp_path / "default"
+    assert main(["reproduce", "--out", str(out), "--top", "1", *TINY]) == 0
+    text = capsys.readouterr().out
+    assert "default protocol" in text and "(a) simple-cmaes-left-shoulder" in text
+    table = json.loads((out / "success_table.json").read_text())
+    row = table["targets"]["left"]
+    assert row["protocol"]["seeds"]["preset"] == "simple-cmaes-left-shoulder"
+    assert row["protocol"]["top30"] == {"preset": "simple-cmaes-left-local", "epochs": 2, "set": {}}
+    assert set(table["presets"]) == {"simple-cmaes-left-shoulder", "simple-cmaes-left-local"}
+    assert row["measures"]["seeds"]["jerk_trained"]["paper"] == 28.1
+    assert "| left | networks reaching" in text
+    with pytest.raises(ConfigError, match="default protocol has left, bottom"):
+        _plan(None, "simple", ["up"], None, 30, {}, presets.PRESET_DIR)

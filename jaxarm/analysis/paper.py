@@ -95,6 +95,47 @@ def target_stats(folder: Path) -> dict:
     return out
 
 
+#: The quantities of :func:`beside_paper`, in table order: key, label with unit.
+MEASURES = (("speed_before_m_s", "speed before first entry, m/s"),
+            ("speed_after_m_s", "speed after first entry, m/s"),
+            ("distance_after_m", "distance to target after entry, cm"),
+            ("time_inside_s", "time inside the circle, ms"),
+            ("jerk_trained", "dimensionless jerk, trained (all networks)"),
+            ("jerk_naive", "dimensionless jerk, naive (all networks)"),
+            ("jerk_ratio", "dimensionless jerk, trained / naive"))
+
+
+def beside_paper(stats: dict) -> dict:
+    """:func:`target_stats` of one folder as ``{quantity: {mean, sd, n, paper, paper_sd, ratio}}`` for
+    :data:`MEASURES` (units as their labels; ratio = ours / the paper's, None where the paper reports nothing: the
+    after-entry measures exist for the musculoskeletal arm only, and the paper's jerk is over both targets; its
+    absolute jerk values cannot come from its formula for movements starting at rest, so compare the trained/naive
+    ratio, ``reference_values.md``)."""
+    arm, target = stats["arm"], stats["target"]
+    out = {}
+    for key, _ in MEASURES:
+        paper = paper_sd = None
+        if key == "jerk_ratio":
+            t, n = stats["jerk_trained"]["mean"], stats["jerk_naive"]["mean"]
+            ours = {"mean": t / n if n else float("nan"), "sd": float("nan"), "n": stats["jerk_trained"]["n"]}
+            p = PAPER_JERK.get(arm, (None, None))
+            paper = p[0] / p[1] if p[1] else None
+        elif key.startswith("jerk_"):
+            ours = stats[key]
+            paper = PAPER_JERK.get(arm, (None, None))[0 if key == "jerk_trained" else 1]
+        else:
+            ours = stats[key]
+            p = PAPER_MS[PAPER_KEY[key]].get(target) if arm == "musculoskeletal" else None
+            paper, paper_sd = p if p else (None, None)
+        mean = ours["mean"]
+        finite = mean is not None and np.isfinite(mean)
+        out[key] = {"mean": round(float(mean), 4) if finite else None,
+                    "sd": round(float(ours["sd"]), 4) if np.isfinite(ours["sd"]) else None, "n": int(ours["n"]),
+                    "paper": paper, "paper_sd": paper_sd,
+                    "ratio": round(float(mean) / paper, 3) if finite and paper else None}
+    return out
+
+
 def _fmt(s: dict, digits: int = 3) -> str:
     if s["n"] == 0 or not np.isfinite(s["mean"]):
         return "–"

@@ -1,5 +1,6 @@
 """``jaxarm reproduce``: the paper's success statistic (trained networks reaching the target), two ways.
 
+    jaxarm reproduce --arm musculoskeletal --out runs/repro-msarm         # the arm's default protocol
     jaxarm reproduce --arm musculoskeletal --preset NAME --out runs/repro-msarm
     jaxarm reproduce --list-presets
     jaxarm reproduce --make-preset NAME --from-search runs/evolve-msarm     # a preset from a finished search
@@ -10,15 +11,19 @@
     paper counted ("the 30 best metaparameter configurations of the evolutionary search"). A preset without a top
     list (e.g. ``original``) reports (b) as null, with the reason.
 
-Network i uses the key ``PRNGKey(seed + i)`` in both. The protocol is ``jaxarm train``'s: ``epochs`` of 30 s
-(default: the preset's ``epochs`` metaparameter, 12), a 1 s test, success = the hand enters the 4 cm circle. Each
+Without ``--preset``, each (target, mode) runs what the arm's headline numbers ran (:data:`DEFAULT_PROTOCOL`: a
+preset, its epochs and settings), printed first. Network i uses the key ``PRNGKey(seed + i)`` in both. The protocol
+is ``jaxarm train``'s: ``epochs`` of 30 s (default: the preset's ``epochs`` metaparameter, 12), a 1 s test, success =
+the hand enters the 4 cm circle. Each
 (target, mode) is an ordinary ``jaxarm train`` output folder (``OUT/TARGET/seeds``, ``OUT/TARGET/top30``: results.json,
 trajectories.npz, reach.png, per-epoch checkpoints): running the same command again resumes a killed reproduction
 from its last completed epoch, and reuses folders that are finished.
 
 ``OUT/success_table.json``: ``targets[T]`` = {seeds, seeds_n, top30, top30_n, top30_note, naive counts, median
-closest/final distance of each mode, the paper's count}, plus arm, preset (and its provenance), command, seed,
-protocol, timing (wall s, network-seconds per s) and the paper's numbers. The same table is printed.
+closest/final distance of each mode, the paper's count, the (target, mode) protocol, and ``measures``: the paper's
+§3.2 reach measures and Fig. 7 jerk of each mode beside the paper's values and the ratio}, plus arm, presets (and
+their provenance), command, seed, protocol, timing (wall s, network-seconds per s) and the paper's numbers. The same
+tables are printed, the second in Markdown (:func:`results_markdown`).
 """
 from __future__ import annotations
 
@@ -137,20 +142,81 @@ def _epochs_of(sets, what: str) -> int:
     return values[0]
 
 
-def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networks: int = 30, seed: int = 0,
+#: What ``jaxarm reproduce --arm ARM`` runs without ``--preset``: the protocol of each arm's headline numbers (README,
+#: "Results beside the paper"). target -> mode -> (preset, epochs or None for the preset's own, {metaparameter: value}).
+DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] = {
+    "musculoskeletal": {t: {m: ("msarm-cmaes-2cm-rerank", 12, {}) for m in MODES} for t in DEFAULT_TARGETS},
+    "simple": {
+        # shoulder-only babbling, 6 epochs; (b) the local search around the left set
+        "left": {"seeds": ("simple-cmaes-left-shoulder", None, {}), "top30": ("simple-cmaes-left-local", None, {})},
+        # single-group babbling (explore_tot 8) for 16 epochs; (b) the local search around the bottom set
+        "bottom": {"seeds": ("simple-cmaes-shortfall-long", 16, {"explore_tot": 8.0}),
+                   "top30": ("simple-cmaes-bottom-local", None, {})},
+    },
+}
+
+
+def describe_protocol(plan: dict) -> str:
+    """One line per target: which preset, epochs and --set each mode runs."""
+    lines = []
+    for target, modes in plan.items():
+        parts = []
+        for mode, step in modes.items():
+            extra = "".join(f" --set {k}={v:g}" for k, v in step["set"].items())
+            parts.append(f"({'a' if mode == 'seeds' else 'b'}) {step['preset'].name}, {step['epochs']} epochs{extra}")
+        lines.append(f"  {target}: " + "; ".join(parts))
+    return "\n".join(lines)
+
+
+def _plan(preset, arm: str, targets, epochs, top: int, overrides: dict, directory: Path) -> dict:
+    """target -> mode -> {preset, sets, epochs, set}: what each (target, mode) group trains. One ``preset``
+    for every group, or (None) the arm's :data:`DEFAULT_PROTOCOL`; ``epochs`` and ``overrides`` apply to all."""
+    from jaxarm.learning.metaparams import MetaParams
+
+    if preset is None:
+        protocol = DEFAULT_PROTOCOL[arm]
+        targets = list(targets if targets is not None else protocol)
+        unknown = [t for t in targets if t not in protocol]
+        if unknown:
+            raise ConfigError(f"--targets = {','.join(targets)!r}: the {arm} arm's default protocol has "
+                              f"{', '.join(protocol)}; give --preset for other targets")
+        steps = {t: {m: (preset_lib.load(name, directory), ep, s) for m, (name, ep, s) in protocol[t].items()}
+                 for t in targets}
+    else:
+        targets = list(targets if targets is not None else (preset.targets or DEFAULT_TARGETS))
+        steps = {t: {m: (preset, None, {}) for m in MODES} for t in targets}
+    if not targets or len(set(targets)) != len(targets):
+        raise ConfigError(f"--targets = {','.join(targets)!r}: give one or more distinct targets")
+    plan = {}
+    for target, modes in steps.items():
+        plan[target] = {}
+        for mode, (p, ep, fixed) in modes.items():
+            changes = {**fixed, **overrides}
+            sets = [p.best_metaparams()] if mode == "seeds" else p.top_metaparams(top)
+            if not sets:
+                continue
+            if changes:
+                sets = [MetaParams.from_dict({**m.to_dict(), **changes}) for m in sets]
+            n_epochs = epochs if epochs is not None else (
+                ep if ep is not None else _epochs_of(sets, f"preset {p.name!r} {'best' if mode == 'seeds' else 'top'}"))
+            plan[target][mode] = {"preset": p, "sets": sets, "epochs": n_epochs, "set": changes}
+    return plan
+
+
+def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *, networks: int = 30, seed: int = 0,
               epochs: int | None = None, epoch_s: float = 30.0, test_s: float = 1.0, top: int = preset_lib.MAX_TOP,
               backend: str = "fast", progress: bool = True, command: str | None = None,
               overrides: dict[str, float] | None = None, stop_after: int | None = None,
-              dt_ms: float | None = None, log=print) -> dict | None:
+              dt_ms: float | None = None, log=print, preset_dir: Path = preset_lib.PRESET_DIR) -> dict | None:
     """Run (or resume) modes (a) and (b) for every target (``targets`` None: the preset's own targets if it names
-    any, else :data:`DEFAULT_TARGETS`); write and return the success table. ``overrides`` ({name: value}, each
-    within its bound; ``--set``) replaces those metaparameters in the best set and in every top set alike (an
+    any, else :data:`DEFAULT_TARGETS`); write and return the success table. ``preset`` None: the arm's
+    :data:`DEFAULT_PROTOCOL` (a preset, epochs and settings per target and mode). ``overrides`` ({name: value},
+    each within its bound; ``--set``) replaces those metaparameters in the best set and in every top set alike (an
     ``epochs`` override sets the training length, as ``--epochs`` does). ``stop_after``:
     stop the first unfinished folder after that many epochs of this call and return None (tests use it to
     interrupt a run). ``dt_ms``: the network clock step (None: NetworkConfig's default), recorded in the runs'
     meta when not the default."""
     from jaxarm.run import Run, SetsRun
-    from jaxarm.learning.metaparams import MetaParams
     from jaxarm.run import stack_rows as stack
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
@@ -163,27 +229,22 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
         raise ConfigError(f"--seed = {seed}: must be >= 0")
     if epochs is not None and not 1 <= epochs <= 1000:
         raise ConfigError(f"--epochs = {epochs}: must be in [1, 1000]")
-    # A preset tuned for some targets (a one-target search, or a re-ranking for one target) reproduces those by
-    # default; the paper's two otherwise.
-    targets = list(targets if targets is not None else (preset.targets or DEFAULT_TARGETS))
-    if not targets or len(set(targets)) != len(targets):
-        raise ConfigError(f"--targets = {','.join(targets)!r}: give one or more distinct targets")
     overrides = dict(overrides or {})
-    best = preset.best_metaparams()
-    top_sets = preset.top_metaparams(top)
-    if overrides:
-        best = MetaParams.from_dict({**best.to_dict(), **overrides})
-        top_sets = [MetaParams.from_dict({**m.to_dict(), **overrides}) for m in top_sets]
-    epochs_a = epochs if epochs is not None else _epochs_of([best], f"preset {preset.name!r} best")
-    epochs_b = (epochs if epochs is not None else _epochs_of(top_sets, f"preset {preset.name!r} top")) if top_sets \
-        else None
-    if arm not in preset.arms:
-        log(f"note: preset {preset.name!r} was tuned for the {'/'.join(preset.arms)} arm; running it on the {arm} arm")
-    other = [t for t in targets if preset.targets is not None and t not in preset.targets]
-    if other:
-        log(f"note: preset {preset.name!r} was tuned for the {','.join(preset.targets)} target; running it on "
-            f"{','.join(other)} too")
-    no_top = None if top_sets else (f"preset {preset.name!r} has no top list (only its best set is known)")
+    plan = _plan(preset, arm, targets, epochs, top, overrides, preset_dir)
+    targets = list(plan)
+    if preset is None:
+        log(f"the {arm} arm's default protocol (the README's headline numbers; --preset NAME runs one preset):\n"
+            + describe_protocol(plan))
+    else:
+        if arm not in preset.arms:
+            log(f"note: preset {preset.name!r} was tuned for the {'/'.join(preset.arms)} arm; running it on the "
+                f"{arm} arm")
+        other = [t for t in targets if preset.targets is not None and t not in preset.targets]
+        if other:
+            log(f"note: preset {preset.name!r} was tuned for the {','.join(preset.targets)} target; running it on "
+                f"{','.join(other)} too")
+    no_top = {t: None if "top30" in plan[t] else f"preset {plan[t]['seeds']['preset'].name!r} has no top list "
+                                                 "(only its best set is known)" for t in targets}
 
     from jaxarm.run import network_config
 
@@ -193,15 +254,16 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
         return LoopConfig(arm=arm, backend=backend, network=network, task=TaskConfig(
             target=target, epochs=n_epochs, epoch_duration_s=epoch_s, test_duration_s=test_s))
 
-    configs = {t: (config(t, epochs_a), config(t, epochs_b) if top_sets else None) for t in targets}  # validate all
+    configs = {t: {m: config(t, step["epochs"]) for m, step in modes.items()} for t, modes in plan.items()}  # validate
     out = Path(out)
     t_start = time.perf_counter()
     groups = {}
-    for target in targets:
-        cfg_a, cfg_b = configs[target]
-        groups[(target, "seeds")] = Run(cfg_a, networks, seed, out / target / "seeds", best)
-        if top_sets:
-            groups[(target, "top30")] = SetsRun(cfg_b, seed, out / target / "top30", stack(top_sets))
+    for target, modes in plan.items():
+        for mode, step in modes.items():
+            folder = out / target / mode
+            groups[(target, mode)] = (Run(configs[target][mode], networks, seed, folder, step["sets"][0])
+                                      if mode == "seeds" else
+                                      SetsRun(configs[target][mode], seed, folder, stack(step["sets"])))
     for (target, mode), run in groups.items():
         log(f"{arm} arm, {target} target, ({'a' if mode == 'seeds' else 'b'}) {mode}: {run.n} networks, "
             f"{run.config.task.epochs} x {epoch_s:g} s -> {run.out}")
@@ -223,13 +285,13 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
     rows = {}
     for target in targets:
         a = got[(target, "seeds")][0]
-        b = got[(target, "top30")][0] if top_sets else None
+        b = got[(target, "top30")][0] if "top30" in plan[target] else None
         paper = PAPER_SUCCESS.get(arm, {}).get(target)
         rows[target] = {
             "seeds": a["success_count"], "seeds_n": a["n_networks"],
             "top30": None if b is None else b["success_count"], "top30_n": 0 if b is None else b["n_networks"],
-            "top30_note": no_top if b is None else (None if b["n_networks"] == PAPER_N else
-                                                     f"the preset's top list gives {b['n_networks']} sets, not 30"),
+            "top30_note": no_top[target] if b is None else (
+                None if b["n_networks"] == PAPER_N else f"the preset's top list gives {b['n_networks']} sets, not 30"),
             "seeds_naive": a["naive"]["success_count"],
             "top30_naive": None if b is None else b["naive"]["success_count"],
             "seeds_median_min_distance_m": _median_of(a, "min_distance_m"),
@@ -237,19 +299,29 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
             "top30_median_min_distance_m": None if b is None else _median_of(b, "min_distance_m"),
             "top30_median_final_distance_m": None if b is None else _median_of(b, "final_distance_m"),
             "paper": paper, "paper_n": PAPER_N if paper is not None else None,
-            "folders": {m: str(Path(target) / m) for m in (("seeds", "top30") if top_sets else ("seeds",))},
+            "folders": {m: str(Path(target) / m) for m in plan[target]},
+            "protocol": {m: {"preset": step["preset"].name, "epochs": step["epochs"], "set": step["set"]}
+                         for m, step in plan[target].items()},
         }
+        if parallel.is_main_process():   # the files are process 0's
+            rows[target]["measures"] = {m: _measures(out / target / m) for m in plan[target]}
     wall = time.perf_counter() - t_start
     trained = [t for t in batches.values() if not t["reused"]]
     train_wall = sum(t["train_wall_s"] for t in trained)
     net_s = sum(t["epochs_run"] * epoch_s * t["batch_networks"] for t in trained)
+    presets = {step["preset"].name: step["preset"] for modes in plan.values() for step in modes.values()}
+    first = plan[targets[0]]
     table = {
-        "arm": arm, "backend": backend, "preset": preset.name, "preset_description": preset.description,
-        "preset_arms": list(preset.arms), "preset_provenance": preset.provenance,
+        "arm": arm, "backend": backend, "preset": preset.name if preset is not None else f"default ({arm} arm)",
+        "presets": {name: {"description": p.description, "arms": list(p.arms), "provenance": p.provenance}
+                    for name, p in presets.items()},
         "command": command, "seed": seed, "set": overrides,
-        "protocol": {"networks_seeds": networks, "top_sets": len(top_sets), "epochs_seeds": epochs_a,
-                     "epochs_top30": epochs_b, "epoch_s": epoch_s, "test_s": test_s,
-                     "success_radius_m": configs[targets[0]][0].task.success_radius_m,
+        "protocol": {"networks_seeds": networks, "top_sets": max((len(m["top30"]["sets"]) for m in plan.values()
+                                                                 if "top30" in m), default=0),
+                     "epochs_seeds": first["seeds"]["epochs"],
+                     "epochs_top30": first["top30"]["epochs"] if "top30" in first else None,
+                     "per_target": "targets.<target>.protocol", "epoch_s": epoch_s, "test_s": test_s,
+                     "success_radius_m": configs[targets[0]]["seeds"].task.success_radius_m,
                      "keys": "network i uses PRNGKey(seed + i); in top30, network i trains with the preset's set i"},
         "targets": rows,
         "paper": {"source": PAPER_SOURCE, "n": PAPER_N, "success": PAPER_SUCCESS.get(arm),
@@ -267,16 +339,63 @@ def reproduce(preset: preset_lib.Preset, arm: str, targets, out: Path, *, networ
         out.mkdir(parents=True, exist_ok=True)
         (out / TABLE_FILE).write_text(json.dumps(table, indent=1) + "\n")
         log(format_table(table))
+        log(results_markdown(table))
         log(f"-> {out / TABLE_FILE}")
     return table
+
+
+def _measures(folder: Path) -> dict:
+    """A group's reach measures (§3.2) and jaxarm.analysis.paper's jerk (Fig. 7), each beside the paper's value."""
+    from jaxarm.analysis.paper import beside_paper, target_stats
+
+    return beside_paper(target_stats(folder))
+
+
+def results_markdown(table: dict) -> str:
+    """The whole results table in Markdown: per target, the counts then every measure, (a) and (b) beside the
+    paper's value and the ratio ours / paper ((a) mean (SD) over the networks that reached, as the paper averaged)."""
+    from jaxarm.analysis.paper import MEASURES
+
+    def cell(m):
+        if m is None or m["mean"] is None:
+            return "–"
+        return f"{m['mean']:.3g}" + (f" ({m['sd']:.2g})" if m["sd"] is not None else "")
+
+    lines = ["| target | quantity | (a) best set, N seeds | (b) top sets | paper | (a) / paper | (b) / paper |",
+             "|---|---|---|---|---|---|---|"]
+    for target, r in table["targets"].items():
+        b = "n/a" if r["top30"] is None else f"{r['top30']}/{r['top30_n']}"
+        paper = "–" if r["paper"] is None else f"{r['paper']}/{r['paper_n']}"
+
+        def ratio(k, n):   # fraction reaching over the paper's fraction
+            return "–" if r["paper"] is None or k is None else f"{(k / n) / (r['paper'] / r['paper_n']):.2f}"
+
+        lines.append(f"| {target} | networks reaching (naive (a)) | {r['seeds']}/{r['seeds_n']} "
+                     f"({r['seeds_naive']}/{r['seeds_n']}) | {b} | {paper} | "
+                     f"{ratio(r['seeds'], r['seeds_n'])} | {ratio(r['top30'], r['top30_n'] or 1)} |")
+        meas = r.get("measures", {})
+        for key, label in MEASURES:
+            a, bm = meas.get("seeds", {}).get(key), meas.get("top30", {}).get(key)
+            ref = a or bm
+            if ref is None:
+                continue
+            paper = "–" if ref["paper"] is None else f"{ref['paper']:.3g}" + (
+                f" ({ref['paper_sd']:.2g})" if ref["paper_sd"] is not None else "")
+            rr = lambda m: "–" if m is None or m["ratio"] is None else f"{m['ratio']:.2f}"  # noqa: E731
+            lines.append(f"| {target} | {label} | {cell(a)} | {cell(bm)} | {paper} | {rr(a)} | {rr(bm)} |")
+    return "\n".join(lines)
 
 
 def format_table(table: dict) -> str:
     """The success table as text: ours (a) and (b) beside the paper's."""
     p = table["protocol"]
     head = (f"jaxarm reproduce: {table['arm']} arm, preset {table['preset']!r}, seed {table['seed']}, "
-            f"{p['epochs_seeds']} epochs x {p['epoch_s']:g} s, {p['test_s']:g} s test, "
-            f"success = within {p['success_radius_m'] * 100:g} cm")
+            f"epochs of {p['epoch_s']:g} s, {p['test_s']:g} s test, success = within "
+            f"{p['success_radius_m'] * 100:g} cm")
+    for target, r in table["targets"].items():
+        head += "\n  " + target + ": " + "; ".join(
+            f"({'a' if m == 'seeds' else 'b'}) {q['preset']}, {q['epochs']} epochs"
+            + "".join(f" --set {k}={v:g}" for k, v in q["set"].items()) for m, q in r["protocol"].items())
     cols = ("target", "(a) best set, N seeds", "(b) top sets, 1 each", "paper (30 best configs)", "naive (a)",
             "median closest (a)/(b)")
     lines = []
@@ -304,7 +423,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="jaxarm reproduce", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), help="arm (required for a reproduction)")
-    ap.add_argument("--preset", help="preset name (see --list-presets) or the path of a preset .json file")
+    ap.add_argument("--preset", help="preset name (see --list-presets) or the path of a preset .json file "
+                                     "(default: the arm's protocol of the README's headline numbers, which it prints)")
     ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
     ap.add_argument("--targets", default=None,
                     help="comma-separated targets (default: the preset's own targets if it was tuned for some, "
@@ -358,10 +478,10 @@ def reproduce_main(argv: list[str] | None = None) -> int:
             path = preset_lib.save(p, args.preset_dir)
             print(f"preset {p.name!r}: best set + {len(p.top)} top sets from {args.from_search} -> {path}")
             return 0
-        missing = [o for o, v in (("--arm", args.arm), ("--preset", args.preset), ("--out", args.out)) if v is None]
+        missing = [o for o, v in (("--arm", args.arm), ("--out", args.out)) if v is None]
         if missing:
             ap.error(f"{', '.join(missing)} required (or --list-presets / --make-preset)")
-        preset = preset_lib.load(args.preset, args.preset_dir)
+        preset = None if args.preset is None else preset_lib.load(args.preset, args.preset_dir)
         targets = None if args.targets is None else [t.strip() for t in args.targets.split(",") if t.strip()]
         from jaxarm.experiment import _parse_overrides
 
@@ -370,6 +490,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
                           overrides=overrides,
                           epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
                           backend=args.backend, progress=not args.no_progress, dt_ms=args.dt_ms,
+                          preset_dir=args.preset_dir,
                           command=shlex.join(["jaxarm", "reproduce", *argv]))
     except ConfigError as e:
         print(f"jaxarm reproduce: {e}", file=sys.stderr)
