@@ -19,7 +19,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("jaxarm.evolve.reproduce:reproduce_main",
                   "the paper's success table: a preset's best set x 30 seeds and its top 30 sets, per target"),
     "wam-sim": ("jaxarm.robot.cli:wam_sim_main", "run the simulated Barrett WAM behind a UDP receiver"),
-    "export": ("jaxarm.robot.cli:export_main", "stream a joint trajectory to a WAM (simulated or real) over UDP"),
+    "export": ("jaxarm.robot.cli:export_main",
+               "stream a joint trajectory to a WAM (UDP, simulated or real), or write it offline or as a ROS 2 bag"),
 }
 
 

@@ -322,3 +322,19 @@ def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     assert "| left | networks reaching" in text
     with pytest.raises(ConfigError, match="default protocol has left, bottom"):
         _plan(None, "simple", ["up"], None, 30, {}, presets.PRESET_DIR)
+
+
+def test_a_presets_protocol_sets_its_default_length(tmp_path):
+    """A preset's `protocol` (the length its published numbers used) is what reproduce trains unless --epochs says
+    otherwise; the headline musculoskeletal preset carries the paper's 12 epochs; a bad protocol names the field."""
+    from jaxarm.evolve.reproduce import _plan
+
+    ms = presets.load("msarm-cmaes-2cm-rerank")
+    assert ms.protocol["epochs"] == 12 and {float(m.epochs) for m in ms.top_metaparams()} == {4.0}
+    plan = _plan(ms, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
+    assert {s["epochs"] for modes in plan.values() for s in modes.values()} == {12}
+    plan = _plan(ms, "musculoskeletal", ["left"], 3, 30, {}, presets.PRESET_DIR)
+    assert {s["epochs"] for s in plan["left"].values()} == {3}
+    assert presets.Preset.from_json(ms.to_json()).protocol == ms.protocol
+    with pytest.raises(ConfigError, match="protocol = .*must be"):
+        presets.Preset(name="x", description="", arms=("simple",), best=ORIGINAL, protocol={"epochs": 0})

@@ -61,6 +61,9 @@ class Preset:
     top: tuple[dict, ...] = ()
     provenance: dict = field(default_factory=dict)
     targets: tuple[str, ...] | None = None
+    #: The protocol of the preset's published numbers, used by `jaxarm reproduce` unless told otherwise:
+    #: ``{"epochs": E, "why": "..."}`` (None: the sets' own ``epochs`` metaparameter).
+    protocol: dict | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not _NAME_RE.match(self.name):
@@ -84,6 +87,12 @@ class Preset:
         object.__setattr__(self, "top", tuple(rows))
         if self.targets is not None:
             object.__setattr__(self, "targets", tuple(self.targets))
+        if self.protocol is not None:
+            ep = self.protocol.get("epochs") if isinstance(self.protocol, dict) else None
+            if set(self.protocol or {}) - {"epochs", "why"} or isinstance(ep, bool) or not isinstance(ep, int) \
+                    or not 1 <= ep <= 1000:
+                raise ConfigError(f"preset {self.name!r} protocol = {self.protocol!r}: must be "
+                                  '{"epochs": an integer in [1, 1000], "why": "..."}')
 
     # ------------------------------------------------------------------ use
     def best_metaparams(self) -> MetaParams:
@@ -97,6 +106,8 @@ class Preset:
         d = {"name": self.name, "description": self.description, "arms": list(self.arms)}
         if self.targets is not None:
             d["targets"] = list(self.targets)
+        if self.protocol is not None:
+            d["protocol"] = self.protocol
         d.update(best=self.best, top=list(self.top), provenance=self.provenance)
         return d
 
@@ -104,7 +115,7 @@ class Preset:
     def from_json(cls, d: dict, where: str = "preset") -> "Preset":
         if not isinstance(d, dict):
             raise ConfigError(f"{where}: a preset file holds one JSON object")
-        known = {"name", "description", "arms", "targets", "best", "top", "provenance"}
+        known = {"name", "description", "arms", "targets", "protocol", "best", "top", "provenance"}
         unknown = sorted(set(d) - known)
         missing = [k for k in ("name", "arms", "best") if k not in d]
         if unknown or missing:
@@ -112,7 +123,8 @@ class Preset:
                 ([f"unknown key(s) {unknown}"] if unknown else []) + ([f"missing key(s) {missing}"] if missing else []))
                 + f" (keys: {', '.join(sorted(known))})")
         return cls(name=d["name"], description=d.get("description", ""), arms=tuple(d["arms"]), best=d["best"],
-                   top=tuple(d.get("top") or ()), provenance=d.get("provenance") or {}, targets=d.get("targets"))
+                   top=tuple(d.get("top") or ()), provenance=d.get("provenance") or {}, targets=d.get("targets"),
+                   protocol=d.get("protocol"))
 
 
 def check_metaparams(values, where: str) -> dict:

@@ -145,7 +145,7 @@ def _epochs_of(sets, what: str) -> int:
 #: What ``jaxarm reproduce --arm ARM`` runs without ``--preset``: the protocol of each arm's headline numbers (README,
 #: "Results beside the paper"). target -> mode -> (preset, epochs or None for the preset's own, {metaparameter: value}).
 DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] = {
-    "musculoskeletal": {t: {m: ("msarm-cmaes-2cm-rerank", 12, {}) for m in MODES} for t in DEFAULT_TARGETS},
+    "musculoskeletal": {t: {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES} for t in DEFAULT_TARGETS},
     "simple": {
         # shoulder-only babbling, 6 epochs; (b) the local search around the left set
         "left": {"seeds": ("simple-cmaes-left-shoulder", None, {}), "top30": ("simple-cmaes-left-local", None, {})},
@@ -197,8 +197,14 @@ def _plan(preset, arm: str, targets, epochs, top: int, overrides: dict, director
                 continue
             if changes:
                 sets = [MetaParams.from_dict({**m.to_dict(), **changes}) for m in sets]
-            n_epochs = epochs if epochs is not None else (
-                ep if ep is not None else _epochs_of(sets, f"preset {p.name!r} {'best' if mode == 'seeds' else 'top'}"))
+            if epochs is not None:
+                n_epochs = epochs
+            elif ep is not None:
+                n_epochs = ep
+            elif p.protocol is not None:       # the preset's published numbers used this length
+                n_epochs = p.protocol["epochs"]
+            else:
+                n_epochs = _epochs_of(sets, f"preset {p.name!r} {'best' if mode == 'seeds' else 'top'}")
             plan[target][mode] = {"preset": p, "sets": sets, "epochs": n_epochs, "set": changes}
     return plan
 
@@ -236,6 +242,8 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
         log(f"the {arm} arm's default protocol (the README's headline numbers; --preset NAME runs one preset):\n"
             + describe_protocol(plan))
     else:
+        why = f" ({preset.protocol['why']})" if preset.protocol and epochs is None and "why" in preset.protocol else ""
+        log(f"preset {preset.name!r}{why}:\n" + describe_protocol(plan))
         if arm not in preset.arms:
             log(f"note: preset {preset.name!r} was tuned for the {'/'.join(preset.arms)} arm; running it on the "
                 f"{arm} arm")
