@@ -3,7 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test test-slow bench
+.PHONY: demo test test-slow bench docs
 
 $(BIN)/jaxarm: pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -29,3 +29,12 @@ bench: $(BIN)/jaxarm
 	$(BIN)/python benchmarks/network.py --json
 	$(BIN)/python benchmarks/train.py --json
 	$(BIN)/python benchmarks/wam.py
+
+# The documentation site (mkdocs.yml, docs/) into site/; --strict: any warning (a broken link, a docstring the API
+# reference cannot render) fails the build. Installs the docs extra into .venv on first use.
+$(BIN)/mkdocs: pyproject.toml $(BIN)/jaxarm
+	$(BIN)/pip install --quiet -e ".[docs]"
+	touch $(BIN)/mkdocs
+
+docs: $(BIN)/mkdocs
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site

@@ -56,6 +56,8 @@ class EpochSummary(NamedTuple):
 
 
 class TestResult(NamedTuple):
+    """The 1 s test of one trained network (T = test intervals of 10 ms); lengths in m, angles in rad."""
+
     hand_m: jnp.ndarray        # (T + 1, 2) hand positions at t = 0, 10, ..., 1000 ms, m
     q_rad: jnp.ndarray         # (T + 1, 2) joint angles, rad
     u: jnp.ndarray             # (T, 4) excitations
@@ -85,6 +87,19 @@ def _pop_rates(loop: ClosedLoop, counts, seconds):
 
 
 def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
+    """Build the pure training and test functions of one static configuration.
+
+    Args:
+        config (LoopConfig): the static configuration (arm, network, task, babbling, clock step in ms); compiled
+            into the functions, so it is not traced.
+
+    Returns:
+        TrainFns: ``init(key)``, ``epoch(carry, mp[, target])``, ``train(key, mp[, target])`` (all
+        ``config.task.epochs`` epochs under ``lax.scan``) and ``test(key, trained, mp[, target])`` (the 1 s test
+        without learning). ``key`` is a JAX PRNG key (a network's wiring, noise and babbling), ``mp`` a
+        :class:`~jaxarm.learning.metaparams.MetaParams` (each field in its own unit: ms, Hz or dimensionless).
+        Each is pure: ``jit`` it and ``vmap`` it over keys (networks), metaparameter sets or targets.
+    """
     loop = ClosedLoop(config)
     net, task = loop.net, config.task
     n_intervals = task.epoch_steps

@@ -108,10 +108,10 @@ def dimensionless_jerk(xy, dt, normalise: str = "mean") -> np.ndarray:
     """Dimensionless jerk (∫|x'''|² dt) · D³ / v² of a hand path (see the module docstring for the exact scheme).
 
     Args:
-        xy: (..., T, 2) hand positions in m, sampled every ``dt`` s, T >= 5 (leading axes are batch axes); any
+        xy (ArrayLike): (..., T, 2) hand positions in m, sampled every ``dt`` s, T >= 5 (leading axes are batch axes); any
             float dtype, computed in float64.
-        dt: sample period in s (cancels out; must be > 0).
-        normalise: "mean" (the paper: v = path length / D) or "peak" (Hogan & Sternad's variant: v = max speed,
+        dt (float): sample period in s (cancels out; must be > 0).
+        normalise (str): "mean" (the paper: v = path length / D) or "peak" (Hogan & Sternad's variant: v = max speed,
             speed from the 5-point velocity stencils).
 
     Returns:

@@ -61,11 +61,11 @@ def reach_metrics(xy, target_xy, dt, radius_m=SUCCESS_RADIUS_M, onset_speed_m_s=
     """Reach metrics of one trial.
 
     Args:
-        xy: (T, 2) hand positions in m, ``xy[k]`` at time k·dt (T >= 2).
-        target_xy: (2,) target centre in m.
-        dt: sample period in s.
-        radius_m: success radius in m (paper: 0.04).
-        onset_speed_m_s: speed above which an interval counts as movement (movement onset).
+        xy (ArrayLike): (T, 2) hand positions in m, ``xy[k]`` at time k·dt (T >= 2).
+        target_xy (ArrayLike): (2,) target centre in m.
+        dt (float): sample period in s.
+        radius_m (float): success radius in m (paper: 0.04).
+        onset_speed_m_s (float): speed in m/s above which an interval counts as movement (movement onset).
     """
     xy = jnp.asarray(xy)
     if not jnp.issubdtype(xy.dtype, jnp.floating):

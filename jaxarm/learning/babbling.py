@@ -109,8 +109,10 @@ def babble(key, state: BabblingState, t_ms, mp, config: BabblingConfig = Babblin
     """One babbling step, to be called at every RL update (t in ms since the start of the run).
 
     Args:
-        key: JAX PRNG key for this call. state: :class:`BabblingState`. t_ms: current time, ms.
-        mp: :class:`~jaxarm.learning.metaparams.MetaParams` (uses random_muscle_dt_max_ms, explore_tot,
+        key (jax.Array): JAX PRNG key for this call.
+        state (BabblingState): the babbling state.
+        t_ms (float): current time, ms.
+        mp (MetaParams): the metaparameters (uses random_muscle_dt_max_ms, explore_tot,
             em_noise_rate_train_hz).
     Returns:
         (new state, (4,) EM AMPA noise rates in Hz to apply from now on).

@@ -80,10 +80,14 @@ def dopamine_update(wgain, pdope, plastic, maxw, inc, t_ms, signal, max_elig_tr_
     """Apply one critic signal to every synapse with a live tag (the original's ``dopelearn``).
 
     Args:
-        wgain: (...) weight gains (dimensionless). pdope: (...) tag times, ms.
-        plastic: bool mask (broadcastable). maxw, inc: per-synapse or scalar soft bound and step.
-        t_ms: current time, ms. signal: +1 reward, -1 punishment, 0 nothing (a traced scalar is fine).
-        max_elig_tr_dur_ms: tag lifetime, ms.
+        wgain (jax.Array): (...) weight gains (dimensionless, multiplying the base weight).
+        pdope (jax.Array): (...) tag times, ms.
+        plastic (jax.Array): bool mask (broadcastable).
+        maxw (ArrayLike): soft bound, per synapse or scalar (dimensionless, in units of the base weight).
+        inc (ArrayLike): step of one update, per synapse or scalar (dimensionless).
+        t_ms (float): current time, ms.
+        signal (ArrayLike): +1 reward, -1 punishment, 0 nothing (a traced scalar is fine).
+        max_elig_tr_dur_ms (float): tag lifetime, ms.
 
     Returns:
         (wgain, pdope): updated gains (>= 0) and tags (cleared after use only with ``config.reset_after_use``).
