@@ -221,6 +221,23 @@ def test_shortfall_variants_margin_and_worst_target():
         assert name in fitness.available()
 
 
+def test_reach_and_stay_scores_the_excursions_after_entry():
+    """Hand-computed: a hand that enters within 2 cm and stays scores 0; one that passes through scores the mean
+    of its distances beyond 4 cm from first entry on; one that never enters scores its 2 cm shortfall only."""
+    import jax.numpy as jnp
+
+    from jaxarm.evolve import fitness
+    from jaxarm.evolve.reaching import _reach_and_stay
+
+    stays = jnp.array([0.15, 0.08, 0.015, 0.01, 0.03])
+    through = jnp.array([0.15, 0.03, 0.01, 0.07, 0.12])       # enters at sample 1: after = 0.03, 0.01, 0.07, 0.12
+    never = jnp.array([0.15, 0.10, 0.06])
+    assert float(_reach_and_stay(stays, 0.04)) == 0.0
+    assert float(_reach_and_stay(through, 0.04)) == pytest.approx((0.03 + 0.08) / 4, abs=1e-7)
+    assert float(_reach_and_stay(never, 0.04)) == pytest.approx(0.04, abs=1e-7)
+    assert "reaching-stay" in fitness.available()
+
+
 def test_protocol_checks_map_each_change_to_one_field(tmp_path):
     # experiments/protocol_checks.py: each named change sets one LoopConfig field; "none" is the default protocol;
     # a folder holding another change's run is refused by name.
