@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm.analysis.paper import run_folders
+from jaxarm.paper.comparison import run_folders
 from jaxarm.task.config import START_POSTURE_RAD, TARGET_ANGLES_RAD, forward_kinematics_m
 
 JOINTS = ("shoulder", "elbow")

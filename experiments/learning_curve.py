@@ -152,7 +152,7 @@ def main(argv=None) -> int:
     if not 0.01 <= args.epoch_s <= 600:
         ap.error(f"--epoch-s = {args.epoch_s}: must be in [0.01, 600] s")
     from jaxarm.config.validate import ConfigError
-    from jaxarm.evolve import presets
+    from jaxarm.paper import presets
     from jaxarm.experiment import _parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.task.config import TARGET_ANGLES_RAD

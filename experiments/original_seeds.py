@@ -11,10 +11,10 @@
 
 The original model was run 60 times with different seeds (run k: inputseed 1235 + 17 k, dvseed 398115 + 1000 k),
 each the full protocol on the simple arm; its outcomes, test trajectories and fresh-noise re-tests are reference
-data in ``jaxarm/analysis/data/original_seeds_<target>.json`` (how they were measured: its ``measured`` entry and
+data in ``jaxarm/paper/data/original_seeds_<target>.json`` (how they were measured: its ``measured`` entry and
 docs/results.md). Both models' tests re-use the training noise streams, as the original re-seeds its noise at every
 run; ``--fresh`` adds our networks re-tested with other streams (``jaxarm test --fresh-noise J``), beside the
-original's re-tests. Computed by :func:`jaxarm.analysis.paper.seed_distribution_comparison`.
+original's re-tests. Computed by :func:`jaxarm.paper.comparison.seed_distribution_comparison`.
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm.analysis.paper import (EPOCH_COLUMNS, original_epoch_comparison, original_seed_runs,
+from jaxarm.paper.comparison import (EPOCH_COLUMNS, original_epoch_comparison, original_seed_runs,
                                    seed_distribution_comparison)
 
 

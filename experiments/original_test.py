@@ -7,7 +7,7 @@ The original model was run once (its own seeds) with the authors' metaparameters
 target; the spec gives its hand–target distance at a few test times, its closest approach (1.59 cm), final distance
 (3.31 cm), final joint angles and test firing rates. Our 30 networks (seeds ``seed .. seed+29``) are 30 draws of
 wiring, noise and babbling; this places the original's one run in their distribution: at each time, the percentile
-of the original's distance among ours. Computed by :func:`jaxarm.analysis.paper.original_test_comparison`.
+of the original's distance among ours. Computed by :func:`jaxarm.paper.comparison.original_test_comparison`.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm.analysis.paper import ORIGINAL_TEST_DISTANCE_CM, original_test_comparison
+from jaxarm.paper.comparison import ORIGINAL_TEST_DISTANCE_CM, original_test_comparison
 
 
 def markdown(c: dict) -> str:

@@ -46,7 +46,7 @@ def loop_config(arm: str, target: str, change: str, epochs: int | None = None):
 
 
 def main(argv=None) -> int:
-    from jaxarm.evolve import presets
+    from jaxarm.paper import presets
     from jaxarm.experiment import write_outputs
     from jaxarm.run import Run
 

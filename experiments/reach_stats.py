@@ -5,7 +5,7 @@
 
 Each argument is a ``jaxarm train`` / ``jaxarm reproduce`` output: a folder holding ``results.json`` and
 ``trajectories.npz`` (one target), or a ``reproduce`` folder (its ``<target>/seeds`` sub-folders are used).
-What is computed, and the paper's values: :mod:`jaxarm.analysis.paper`.
+What is computed, and the paper's values: :mod:`jaxarm.paper.comparison`.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import argparse
 import json
 from pathlib import Path
 
-from jaxarm.analysis.paper import markdown, run_folders, target_stats
+from jaxarm.paper.comparison import markdown, run_folders, target_stats
 
 
 def main(argv=None) -> None:

@@ -10,7 +10,7 @@ gains = mean wgain of each pathway at the end of the epoch. Our numbers are the 
 The original is one network. ``--percentiles`` reads the run's per-network ``history.npz`` (written next to
 results.json) and prints, per epoch and column, the original's value as a percentile among our networks (the
 percentage of our networks below it, ties half; 0 or 100: outside all of them), with our 10-90 % range
-(``jaxarm.analysis.paper.original_history_percentiles``).
+(``jaxarm.paper.comparison.original_history_percentiles``).
 """
 from __future__ import annotations
 
@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm.analysis.paper import ORIGINAL_HISTORY as ORIGINAL
-from jaxarm.analysis.paper import ORIGINAL_HISTORY_GAINS as GAINS
-from jaxarm.analysis.paper import ORIGINAL_HISTORY_RATES as RATES
-from jaxarm.analysis.paper import original_history_percentiles
+from jaxarm.paper.comparison import ORIGINAL_HISTORY as ORIGINAL
+from jaxarm.paper.comparison import ORIGINAL_HISTORY_GAINS as GAINS
+from jaxarm.paper.comparison import ORIGINAL_HISTORY_RATES as RATES
+from jaxarm.paper.comparison import original_history_percentiles
 
 
 def rows(results: dict):

@@ -49,7 +49,7 @@ def network_trajectory(preset: str, arm: str, target: str, seed: int, duration_s
     """The first ``duration_s`` s of closed-loop training of network ``PRNGKey(seed)`` (one continuous run)."""
     import jax
 
-    from jaxarm.evolve import presets
+    from jaxarm.paper import presets
     from jaxarm.learning import babbling as bab
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig

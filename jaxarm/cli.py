@@ -16,7 +16,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "test": ("jaxarm.experiment:test_main", "re-test networks trained by `jaxarm train`"),
     "evolve": ("jaxarm.evolve.cli:evolve_main",
                "search the metaparameters with an evosax strategy (CMA-ES, GA, ...) in compiled, checkpointed chunks"),
-    "reproduce": ("jaxarm.evolve.reproduce:reproduce_main",
+    "reproduce": ("jaxarm.paper.reproduce:reproduce_main",
                   "the paper's success table: a preset's best set x 30 seeds and its top 30 sets, per target"),
     "wam-sim": ("jaxarm.robot.cli:wam_sim_main", "run the simulated Barrett WAM behind a UDP receiver"),
     "export": ("jaxarm.robot.cli:export_main",

@@ -200,7 +200,7 @@ def test_mean_sd_ignores_nan_and_masked_entries():
     assert math.isnan(empty["mean"]) and empty["n"] == 0
 
 
-# ------------------------------------------------------------------------------ jaxarm.analysis.paper
+# ------------------------------------------------------------------------------ jaxarm.paper.comparison
 def _fake_run(folder, arm, target, hands, naive_hands, successes):
     """A run folder as `jaxarm train` writes it, with only what reach_stats reads."""
     import json
@@ -223,7 +223,7 @@ def _fake_run(folder, arm, target, hands, naive_hands, successes):
 
 
 def test_paper_stats_report_successful_networks_beside_the_paper(tmp_path):
-    from jaxarm.analysis import paper as mod
+    from jaxarm.paper import comparison as mod
 
     t = np.linspace(0.0, 1.0, 101)[:, None]
     start = np.array([0.15, 0.0])
@@ -249,7 +249,7 @@ def test_paper_stats_report_successful_networks_beside_the_paper(tmp_path):
 def test_original_test_comparison_places_the_original_run_among_ours(tmp_path):
     import json
 
-    from jaxarm.analysis import paper as mod
+    from jaxarm.paper import comparison as mod
 
     # four networks whose distance falls linearly from 15.1 cm to 0, 2, 4 and 6 cm at 1 s
     t = np.arange(101) * 0.01
@@ -347,8 +347,8 @@ def test_training_history_places_the_original_among_our_networks(tmp_path):
     import importlib.util
     from pathlib import Path
 
-    from jaxarm.analysis import paper
-    from jaxarm.analysis.paper import ORIGINAL_HISTORY, ORIGINAL_HISTORY_GAINS, ORIGINAL_HISTORY_RATES
+    from jaxarm.paper import comparison as paper
+    from jaxarm.paper.comparison import ORIGINAL_HISTORY, ORIGINAL_HISTORY_GAINS, ORIGINAL_HISTORY_RATES
 
     path = Path(__file__).resolve().parents[1] / "experiments" / "training_history.py"
     spec = importlib.util.spec_from_file_location("training_history", path)
@@ -383,7 +383,7 @@ def test_training_history_places_the_original_among_our_networks(tmp_path):
 def test_original_seed_runs_are_the_reference_runs():
     # the packaged measurements of the original NEURON model over 60 seeds (docs/results.md): run 0 is the published
     # seed pair, so it must be the spec's reference test; every run's success is its closest approach within 4 cm
-    from jaxarm.analysis import paper as mod
+    from jaxarm.paper import comparison as mod
 
     d = mod.original_seed_runs("left")
     runs = d["runs"]
@@ -406,7 +406,7 @@ def test_original_seed_runs_are_the_reference_runs():
 def test_seed_distribution_comparison_counts_and_tests(tmp_path):
     import json
 
-    from jaxarm.analysis import paper as mod
+    from jaxarm.paper import comparison as mod
 
     t = np.arange(101) * 0.01
     folder = tmp_path / "run"
@@ -461,7 +461,7 @@ def test_seed_distribution_comparison_counts_and_tests(tmp_path):
 
 
 def test_original_epoch_comparison_lines_up_epochs_and_columns():
-    from jaxarm.analysis import paper as mod
+    from jaxarm.paper import comparison as mod
 
     pathways = np.array(["ES->ES", "ES->IS", "ES->EM", "EM->EM", "EM->IM", "EM->ES", "IS->ES", "P->ES"])
     pops = np.array(["ES", "IS", "ISL", "EM", "IM", "IML"])
@@ -486,7 +486,7 @@ def test_original_epoch_comparison_lines_up_epochs_and_columns():
 
 def test_original_bottom_runs_do_not_reach():
     # the original's 30 runs on the bottom target (docs/results.md): none enters the circle
-    from jaxarm.analysis import paper as mod
+    from jaxarm.paper import comparison as mod
 
     d = mod.original_seed_runs("bottom")
     assert d["target"] == "bottom" and [r["k"] for r in d["runs"]] == list(range(30))
@@ -499,7 +499,7 @@ def test_beside_paper_gives_each_measure_with_the_papers_value_and_ratio(tmp_pat
     """A path that enters and stays, one that passes through, one that never enters: the after-entry measures
     average the two that entered (hand-computed), sit beside the paper's musculoskeletal left values, and the ratio
     is ours / the paper's; the simple arm has no paper values for them."""
-    from jaxarm.analysis import paper as mod
+    from jaxarm.paper import comparison as mod
 
     t = np.arange(101)[:, None] * 0.01
     start = np.array([0.15, 0.0])

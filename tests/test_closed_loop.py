@@ -412,7 +412,7 @@ def test_trained_networks_reach_closer_than_their_naive_selves(tmp_path):
     """The learning rule does its job: two networks of the shipped simple-arm preset trained 3 x 20 s come within
     5 cm of the left target where their untrained selves stay 12-15 cm away (measured 1.5 and 5.0 cm vs 14.8 and
     12.3 cm; with the critic's sign flipped both end at 15.1 cm, so this fails if rewards and punishments swap)."""
-    from jaxarm.evolve import presets
+    from jaxarm.paper import presets
     from jaxarm.run import Run
 
     mp = MetaParams.from_dict(presets.load("simple-cmaes-left-shoulder").best)

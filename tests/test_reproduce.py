@@ -10,7 +10,7 @@ import pytest
 
 from jaxarm.cli import main
 from jaxarm.config.validate import ConfigError
-from jaxarm.evolve import presets
+from jaxarm.paper import presets
 from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams
 
 TINY = ["--arm", "simple", "--targets", "left", "--networks", "2", "--epochs", "2", "--epoch-s", "0.2",
@@ -157,7 +157,7 @@ def test_preset_from_a_stopped_search_needs_allow_unfinished(tmp_path, capsys):
 
 
 def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
-    from jaxarm.evolve.reproduce import reproduce
+    from jaxarm.paper.reproduce import reproduce
 
     out = tmp_path / "repro"
     p = presets.load("quad", preset_dir)
@@ -187,7 +187,7 @@ def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
 
 def test_reproduce_resumes_past_a_damaged_checkpoint(tmp_path, preset_dir, capsys):
     from conftest import truncate_newest_checkpoint
-    from jaxarm.evolve.reproduce import reproduce
+    from jaxarm.paper.reproduce import reproduce
 
     p = presets.load("quad", preset_dir)
     kw = dict(networks=2, epochs=2, epoch_s=0.2, test_s=0.2, top=2, progress=False, log=lambda _: None)
@@ -216,11 +216,16 @@ def test_original_preset_reports_top30_null(tmp_path, capsys):
 
 
 def test_every_shipped_preset_loads_and_is_within_bounds():
-    """Each jaxarm/presets/*.json validates (fields, bounds, provenance) and names the arm it was tuned for."""
-    from jaxarm.evolve import presets
+    """Each jaxarm/paper/presets/*.json validates (fields, bounds, provenance) and names the arm it was tuned for."""
+    from jaxarm.paper import presets
 
-    names = presets.available()
+    names = presets.available(archive=True)
     assert list(names)[0] == "original"
+    # the README's presets sit in the package folder, the other searches' in archive/, loadable by name
+    assert set(presets.available()) == {"original", "msarm-cmaes-2cm-rerank", "simple-cmaes-left-shoulder",
+                                        "simple-cmaes-shortfall-long", "simple-cmaes-left-local",
+                                        "simple-cmaes-bottom-local"}
+    assert "simple-fixedseed-left" in names and presets.load("simple-fixedseed-left").name == "simple-fixedseed-left"
     for name in names:
         p = presets.load(name)
         assert p.name == name and p.arms
@@ -231,7 +236,7 @@ def test_every_shipped_preset_loads_and_is_within_bounds():
 def test_a_one_target_preset_reproduces_its_target_by_default(tmp_path, preset_dir):
     """A preset tuned for one target (a one-target search or re-ranking) runs that target when --targets is not
     given; a target it was not tuned for is run when asked, with a note saying so."""
-    from jaxarm.evolve.reproduce import reproduce
+    from jaxarm.paper.reproduce import reproduce
 
     quad = presets.load("quad", preset_dir)
     kw = dict(networks=2, epochs=2, epoch_s=0.2, test_s=0.2, progress=False)
@@ -296,7 +301,7 @@ def test_musculoskeletal_reproduce_with_the_shipped_preset_then_retest(tmp_path)
 def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     """Without --preset, each (target, mode) runs the preset, epochs and settings of the README's headline row
     (read from the shipped preset files), says so first, and the table records it with the paper's measures."""
-    from jaxarm.evolve.reproduce import DEFAULT_PROTOCOL, _plan
+    from jaxarm.paper.reproduce import DEFAULT_PROTOCOL, _plan
 
     plan = _plan(None, "simple", None, None, 30, {}, presets.PRESET_DIR)
     assert {t: {m: (s["preset"].name, s["epochs"], s["set"]) for m, s in modes.items()} for t, modes in plan.items()} \
@@ -327,7 +332,7 @@ def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
 def test_a_presets_protocol_sets_its_default_length(tmp_path):
     """A preset's `protocol` (the length its published numbers used) is what reproduce trains unless --epochs says
     otherwise; the headline musculoskeletal preset carries the paper's 12 epochs; a bad protocol names the field."""
-    from jaxarm.evolve.reproduce import _plan
+    from jaxarm.paper.reproduce import _plan
 
     ms = presets.load("msarm-cmaes-2cm-rerank")
     assert ms.protocol["epochs"] == 12 and {float(m.epochs) for m in ms.top_metaparams()} == {4.0}

@@ -40,7 +40,7 @@ import numpy as np
 
 from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
-from jaxarm.evolve import presets as preset_lib
+from jaxarm.paper import presets as preset_lib
 
 #: Trained networks reaching the target in the paper (§3.2; spec reference_values.md), out of PAPER_N: its 30 best
 #: metaparameter configurations of the search, one network each (our mode (b)).
@@ -353,8 +353,8 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
 
 
 def _measures(folder: Path) -> dict:
-    """A group's reach measures (§3.2) and jaxarm.analysis.paper's jerk (Fig. 7), each beside the paper's value."""
-    from jaxarm.analysis.paper import beside_paper, target_stats
+    """A group's reach measures (§3.2) and jaxarm.paper.comparison's jerk (Fig. 7), each beside the paper's value."""
+    from jaxarm.paper.comparison import beside_paper, target_stats
 
     return beside_paper(target_stats(folder))
 
@@ -362,7 +362,7 @@ def _measures(folder: Path) -> dict:
 def results_markdown(table: dict) -> str:
     """The whole results table in Markdown: per target, the counts then every measure, (a) and (b) beside the
     paper's value and the ratio ours / paper ((a) mean (SD) over the networks that reached, as the paper averaged)."""
-    from jaxarm.analysis.paper import MEASURES
+    from jaxarm.paper.comparison import MEASURES
 
     def cell(m):
         if m is None or m["mean"] is None:
@@ -455,6 +455,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-progress", action="store_true")
     parallel.add_arguments(ap)
     ap.add_argument("--list-presets", action="store_true", help="list the presets, one per line, name first; exit")
+    ap.add_argument("--all", action="store_true",
+                    help="with --list-presets: also the archived presets of earlier searches (docs/searches.md)")
     g = ap.add_argument_group("making a preset from a finished `jaxarm evolve` folder")
     g.add_argument("--make-preset", metavar="NAME", help="write a preset NAME.json from --from-search and exit")
     g.add_argument("--from-search", type=Path, metavar="DIR", help="a `jaxarm evolve --out` folder")
@@ -475,7 +477,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
     try:
         parallel.start_from_arguments(args)
         if args.list_presets:
-            for name, desc in preset_lib.available(args.preset_dir).items():
+            for name, desc in preset_lib.available(args.preset_dir, archive=args.all).items():
                 print(f"{name}  {desc}")
             return 0
         if args.make_preset:

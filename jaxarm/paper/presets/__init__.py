@@ -1,6 +1,6 @@
 """Named metaparameter presets: the sets ``jaxarm reproduce`` trains, with where they came from.
 
-A preset is a JSON file ``jaxarm/presets/NAME.json`` (shipped with the package) holding:
+A preset is a JSON file ``jaxarm/paper/presets/NAME.json`` (shipped with the package) holding:
 
 * ``name``, ``description``, ``arms`` (the arm(s) it was tuned for) and optionally ``targets``;
 * ``best``: a complete metaparameter set (every :class:`~jaxarm.learning.metaparams.MetaParams` field, in the
@@ -8,7 +8,12 @@ A preset is a JSON file ``jaxarm/presets/NAME.json`` (shipped with the package) 
 * ``top`` (optional): up to 30 ranked sets, best first, each ``{"rank", "fitness", "generation",
   "metaparams"}`` -- the paper's statistic trains one network with each;
 * ``provenance``: the command, search seed, cost (wall time, evaluations, network-seconds) and date that produced
-  it.
+  it;
+* ``protocol`` (optional): ``{"epochs", "why"}``, the training length its published numbers used.
+
+The presets behind the README's tables sit in this folder; the sets of every other search of the project's history
+(``docs/searches.md``) in ``archive/``, still loadable by name and listed by ``jaxarm reproduce --list-presets
+--all``.
 
 The built-in preset ``original`` is :meth:`MetaParams.original` (the authors' values from ``main.hoc``, spec §7); it
 has no top list: the authors' other 29 configurations are not available.
@@ -18,7 +23,7 @@ Making a preset from a finished search (its ``top_k.json`` and ``history.json``)
     jaxarm evolve --arm musculoskeletal --targets left,bottom --out runs/evolve-msarm ...
     jaxarm reproduce --make-preset msarm-cmaes --from-search runs/evolve-msarm \\
         --search-command "jaxarm evolve --arm musculoskeletal ..."      # the exact command, if you have it
-    git add jaxarm/presets/msarm-cmaes.json
+    git add jaxarm/paper/presets/msarm-cmaes.json
 
 or from Python, :func:`from_search` then :func:`save`. Every set is checked against
 :data:`~jaxarm.learning.metaparams.BOUNDS` when a preset is made and when it is loaded; a value outside raises
@@ -40,7 +45,9 @@ from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams
 
 #: Where the package's preset files live (``--make-preset`` writes here by default, so the file can be committed).
-PRESET_DIR = Path(__file__).resolve().parent.parent / "presets"
+PRESET_DIR = Path(__file__).resolve().parent
+#: Presets of earlier searches (docs/searches.md), loadable by name, listed with ``--list-presets --all``.
+ARCHIVE = "archive"
 #: The built-in preset's name.
 ORIGINAL_NAME = "original"
 #: The paper reported its 30 best configurations.
@@ -160,14 +167,20 @@ def original() -> Preset:
                     "command": None, "seed": None, "cost": None, "date": None})
 
 
-def _file_presets(directory: Path) -> dict[str, Path]:
-    return {p.stem: p for p in sorted(Path(directory).glob("*.json"))}
+def _file_presets(directory: Path, archive: bool = True) -> dict[str, Path]:
+    """``{name: path}`` of ``directory``'s preset files, then (``archive``) those of its archive folder."""
+    found = {p.stem: p for p in sorted(Path(directory).glob("*.json"))}
+    if archive:
+        for p in sorted((Path(directory) / ARCHIVE).glob("*.json")):
+            found.setdefault(p.stem, p)
+    return found
 
 
-def available(directory: Path = PRESET_DIR) -> dict[str, str]:
-    """``{name: one-line description}``: ``original`` first, then the preset files by name."""
+def available(directory: Path = PRESET_DIR, archive: bool = False) -> dict[str, str]:
+    """``{name: one-line description}``: ``original`` first, then the preset files by name (with ``archive``, the
+    archived ones after them)."""
     out = {ORIGINAL_NAME: original().description}
-    for name, path in _file_presets(directory).items():
+    for name, path in _file_presets(directory, archive).items():
         try:
             d = json.loads(path.read_text())
             desc = d.get("description", "") if isinstance(d, dict) else ""
@@ -184,14 +197,15 @@ def load(name_or_path: str | Path, directory: Path = PRESET_DIR) -> Preset:
         return original()
     path = Path(text) if (text.endswith(".json") or "/" in text) else _file_presets(directory).get(text)
     if path is None or not path.is_file():
-        raise ConfigError(f"unknown preset {text!r}; known: {', '.join(available(directory))} "
+        raise ConfigError(f"unknown preset {text!r}; known: {', '.join(available(directory, archive=True))} "
                           "(or give the path of a preset .json file)")
     try:
         d = json.loads(path.read_text())
     except json.JSONDecodeError as e:
         raise ConfigError(f"preset file {path}: not valid JSON ({e})") from None
     preset = Preset.from_json(d, where=f"preset file {path}")
-    if path.parent.resolve() == Path(directory).resolve() and preset.name != path.stem:
+    if path.parent.resolve() in (Path(directory).resolve(), (Path(directory) / ARCHIVE).resolve()) \
+            and preset.name != path.stem:
         raise ConfigError(f"preset file {path} is named {preset.name!r} inside; the file must be {preset.name}.json")
     return preset
 
