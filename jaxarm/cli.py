@@ -18,6 +18,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
                "search the metaparameters with an evosax strategy (CMA-ES, GA, ...) in compiled, checkpointed chunks"),
     "reproduce": ("jaxarm.evolve.reproduce:reproduce_main",
                   "the paper's success table: a preset's best set x 30 seeds and its top 30 sets, per target"),
+    "figures": ("jaxarm.viz.figures:main",
+                "the paper's figures (raster, rates, reach, jerk, muscles, robot) from a run folder, PNG + data"),
+    "video": ("jaxarm.viz.video:main", "an MP4 of one network reaching: the arm, the target, a scrolling raster"),
     "wam-sim": ("jaxarm.robot.cli:wam_sim_main", "run the simulated Barrett WAM behind a UDP receiver"),
     "export": ("jaxarm.robot.cli:export_main", "stream a joint trajectory to a WAM (simulated or real) over UDP"),
 }

@@ -131,10 +131,14 @@ def write_records(run, trained_res, naive_res) -> dict:
         windows[f"epoch_{e}"] = {"recording": rec, "start_step": (task.epoch_steps - n_rec) * steps,
                                  "stop_step": task.epoch_steps * steps}
     pops = Populations(net)
+    group = np.full(net.n_all, -1, np.int8)
+    group[pops.slice("EM")] = pops.em_groups()
+    group[pops.slice("P")] = pops.p_groups()
     networks = run.recorded_networks()
     rec_mod.save_spikes(run.out / rec_mod.SPIKES_FILE, windows, seeds=run.seeds, networks=networks,
                         dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=POPULATIONS,
                         pop_start=[pops.start[p] for p in POPULATIONS], pop_stop=[pops.stop[p] for p in POPULATIONS],
+                        group=group,
                         capacity=run.record_capacity, config=run.record, arm=run.config.arm)
     files = [rec_mod.SPIKES_FILE]
     if run.config.arm == "musculoskeletal":

@@ -170,13 +170,15 @@ MUSCLES_FILE = "muscles.npz"
 
 
 def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms: float, interval_ms: float,
-                populations, pop_start, pop_stop, capacity: dict[str, int], config: RecordConfig,
+                populations, pop_start, pop_stop, group, capacity: dict[str, int], config: RecordConfig,
                 arm: str) -> Path:
     """Write ``spikes.npz``. ``windows``: name -> {"recording": a host Recording batch (networks first),
     "start_step": int, "stop_step": int}; only the networks ``networks`` (indices) are written.
 
     Keys: ``windows`` (names), ``seeds``, ``networks``, ``dt_ms``, ``interval_ms``, ``n_all``, ``populations``,
-    ``pop_start``/``pop_stop`` (global id ranges), ``max_rate_hz``, ``arm``; per window W: ``W.step`` (int32 clock
+    ``pop_start``/``pop_stop`` (global id ranges), ``group`` (n_all,: the muscle group, 0..3 in
+    :data:`jaxarm.arm.GROUPS` order, an EM cell drives or a P cell senses; -1 for the other cells), ``max_rate_hz``,
+    ``arm``; per window W: ``W.step`` (int32 clock
     steps since the run's start), ``W.cell`` (int16 global ids), ``W.offsets`` (network r's spikes are
     offsets[r]:offsets[r+1]), ``W.t_start_ms``/``W.t_stop_ms``, ``W.counts`` (networks, n_all: the network's own
     spike count per cell over the window), ``W.capacity``, ``W.t_ms`` (the arm samples' times), ``W.q_rad``,
@@ -187,7 +189,8 @@ def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms:
                            "networks": np.asarray(networks, np.int32), "dt_ms": np.float64(dt_ms),
                            "interval_ms": np.float64(interval_ms), "n_all": np.int32(n_all),
                            "populations": np.asarray(populations), "pop_start": np.asarray(pop_start, np.int32),
-                           "pop_stop": np.asarray(pop_stop, np.int32), "max_rate_hz": np.float64(config.max_rate_hz),
+                           "pop_stop": np.asarray(pop_stop, np.int32), "group": np.asarray(group, np.int8),
+                           "max_rate_hz": np.float64(config.max_rate_hz),
                            "bytes_per_spike": np.int32(BYTES_PER_SPIKE), "arm": np.asarray(arm)}
     for name, w in windows.items():
         rec, start = w["recording"], int(w["start_step"])
@@ -255,6 +258,8 @@ class SpikeFile:
         self.pop_start = dict(zip(self.populations, self.data["pop_start"].tolist()))
         self.pop_stop = dict(zip(self.populations, self.data["pop_stop"].tolist()))
         self.n_all = int(self.data["n_all"])
+        self.group = self.data["group"].astype(np.int64)
+        self.arm = str(self.data["arm"])
 
     def __len__(self):
         return len(self.seeds)
