@@ -168,7 +168,8 @@ def add_record_arguments(ap, train: bool) -> None:
                    help="write the records of these networks only (0-based indices in the run; default all)")
     g.add_argument("--record-max-rate-hz", type=float, default=50.0,
                    help="bound on the mean rate over all cells that sizes each window's buffer (default 50 Hz: "
-                        "35,200 spikes, 141 KB per network per recorded second); a network above it is an error")
+                        "35,200 slots, 282 KB per network per recorded second); a network whose spikes need more "
+                        "slots is an error")
     g.add_argument("--record-max-mb", type=float, default=1024.0,
                    help="refuse recording buffers above this many MB for the batch (default 1024)")
     if train:

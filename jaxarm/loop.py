@@ -267,13 +267,11 @@ class ClosedLoop:
         interval or None); state and IntervalRecord equal :meth:`run_keys`'s."""
         from jaxarm import record as rec_mod
 
-        n_all = np.uint32(self.config.network.n_all)
-
         def body(carry, k):
             s, b = carry
-            first = (s.net.step - start_step).astype(jnp.uint32) * n_all
+            interval = (s.net.step - start_step) // self.steps_per_interval
             s, rec, spikes, muscles = self.interval(wiring, s, k, mp, learn, record=True)
-            return (s, rec_mod.push(b, spikes, first)), (rec, muscles)
+            return (s, rec_mod.push(b, spikes, interval)), (rec, muscles)
 
         (state, buf), (rec, muscles) = jax.lax.scan(body, (state, buf), keys)
         return state, rec, buf, muscles

@@ -8,15 +8,19 @@ What is recorded (``RecordConfig``, static: with no record the compiled loop is 
   muscle's activation, forces and lengths.
 
 How: :meth:`jaxarm.network.network.Network.run` with ``collect=True`` gives every clock step's spikes (both
-kernels); each interval's (steps, cells) block is compacted into a fixed-capacity buffer of spike codes
-``(step - window start step - 1) * n_all + cell id`` (one uint32 per spike) by one scatter at a running counter,
-inside the loop's ``lax.scan``. Spikes beyond the capacity are not written but still counted: ``count`` minus the
-capacity is the overflow, which :func:`check_overflow` turns into an error naming the capacity and the option that
-sets it (never a silent truncation).
+kernels). Inside the loop's ``lax.scan`` each interval's (steps, cells) bool block is packed into 32-bit words
+(bit b of word k: flat index 32 k + b, flat = step in the interval x n_all + cell id), and only the non-zero words
+are appended to a fixed-capacity buffer, each as a slot of two uint32 (the word's code, interval x words per
+interval + k, and its bits), by one scatter at a running counter. Packing first matters: a scatter of one update
+per (step, cell) slot cost as much as the rest of the loop (training throughput halved); one per word is 32 times
+fewer updates. Slots beyond the capacity are not written but still counted: ``used`` above the capacity is an
+overflow, which :func:`check_overflow` turns into an error naming the capacity and the option that sets it (never a
+silent truncation). :func:`decode` turns the slots back into (step, cell) pairs on the host.
 
-Memory bound: capacity = ceil(``max_rate_hz`` x n_all cells x window s) spike codes of :data:`BYTES_PER_SPIKE` bytes
-per network (default 50 Hz, far above the mean rate of any trained network; 35,200 spikes = 141 KB per network for
-a 1 s test of the 704 cells). :func:`check_memory` refuses a batch whose buffers would exceed ``max_mb``.
+Memory bound: capacity = ceil(``max_rate_hz`` x n_all cells x window s) slots of :data:`BYTES_PER_SLOT` bytes per
+network. A slot holds at least one spike, so a window whose mean rate stays under ``max_rate_hz`` always fits
+(default 50 Hz, ten times the test rate of the networks trained here; 35,200 slots = 282 KB per network per
+recorded second of the 704 cells). :func:`check_memory` refuses a batch whose buffers would exceed ``max_mb``.
 """
 from __future__ import annotations
 
@@ -31,9 +35,11 @@ import numpy as np
 
 from jaxarm.config.validate import ConfigError
 
-#: One spike code: uint32.
-BYTES_PER_SPIKE = 4
-#: Codes are uint32: a window may hold at most this many (step, cell) slots.
+#: Spikes per packed word.
+WORD_BITS = 32
+#: One buffer slot: a word's code and its bits, two uint32.
+BYTES_PER_SLOT = 8
+#: Word codes are uint32: a window may hold at most this many words.
 MAX_CODES = 2 ** 32
 
 
@@ -43,8 +49,8 @@ class RecordConfig:
 
     Attributes:
         max_rate_hz: bound on the mean firing rate over every cell (P included) of a recorded window, Hz; it sets
-            each window's buffer capacity, ceil(max_rate_hz x n_all x window s). A network that fires more fails
-            with an error naming this bound (``--record-max-rate-hz``).
+            each window's buffer capacity, ceil(max_rate_hz x n_all x window s) slots of up to 32 spikes. A
+            network whose spikes need more slots fails with an error naming this bound (``--record-max-rate-hz``).
         max_mb: most memory the buffers of one batch may take, MB (``--record-max-mb``).
         train_last_s: also record the last this many seconds of the epochs in ``epochs`` (0: the tests only), s.
         epochs: 1-based epochs whose last ``train_last_s`` seconds are recorded; empty: the last epoch.
@@ -72,7 +78,7 @@ class RecordConfig:
             raise ConfigError(f"RecordConfig.networks = {self.networks}: indices are >= 0 (--record-networks)")
 
     def capacity(self, n_all: int, window_ms: float) -> int:
-        """Spikes one network's buffer holds for a window of ``window_ms``: ceil(max_rate_hz x n_all x s)."""
+        """Slots of one network's buffer for a window of ``window_ms``: ceil(max_rate_hz x n_all x s)."""
         return max(1, math.ceil(self.max_rate_hz * n_all * window_ms / 1000.0 - 1e-9))
 
     def recorded_epochs(self, n_epochs: int) -> tuple[int, ...]:
@@ -87,10 +93,12 @@ class RecordConfig:
 
 
 class SpikeBuffer(NamedTuple):
-    """A window's spikes of one network (batch axes in front under ``vmap``)."""
+    """A window's spikes of one network (batch axes in front under ``vmap``), as non-zero 32-bit words."""
 
-    code: jnp.ndarray    # (capacity,) uint32: (step - start_step - 1) * n_all + cell id; unused slots 0
-    count: jnp.ndarray   # () int32 spikes seen in the window (> capacity: the rest were not written)
+    word: jnp.ndarray    # (capacity,) uint32: interval of the window x words per interval + word index; unused 0
+    bits: jnp.ndarray    # (capacity,) uint32: bit b = a spike at flat index 32 x word index + b of the interval
+    used: jnp.ndarray    # () int32 slots the window needed (> capacity: the rest were not written)
+    count: jnp.ndarray   # () int32 spikes in the window
 
 
 class Recording(NamedTuple):
@@ -106,29 +114,38 @@ class Recording(NamedTuple):
 
 
 def empty(capacity: int) -> SpikeBuffer:
-    return SpikeBuffer(code=jnp.zeros((capacity,), jnp.uint32), count=jnp.zeros((), jnp.int32))
+    zeros = jnp.zeros((capacity,), jnp.uint32)
+    return SpikeBuffer(word=zeros, bits=zeros, used=jnp.zeros((), jnp.int32), count=jnp.zeros((), jnp.int32))
 
 
-def push(buf: SpikeBuffer, spikes, first_code) -> SpikeBuffer:
-    """Append the spikes of a (steps, n_all) bool block whose first step's cell 0 has code ``first_code`` (uint32).
-    Order: by step, then cell id. Slots past the capacity are dropped by the scatter and counted."""
-    flat = spikes.reshape(-1)
-    capacity = buf.code.shape[0]
-    pos = buf.count + jnp.cumsum(flat, dtype=jnp.int32) - 1
-    index = jnp.where(flat, pos, capacity)          # not a spike, or past the end: out of bounds, dropped
-    codes = first_code + jnp.arange(flat.shape[0], dtype=jnp.uint32)
-    return SpikeBuffer(code=buf.code.at[index].set(codes, mode="drop"),
-                       count=buf.count + jnp.sum(flat, dtype=jnp.int32))
+def words_per_interval(steps: int, n_all: int) -> int:
+    return -(-steps * n_all // WORD_BITS)
 
 
-def check_window(n_all: int, window_steps: int, what: str) -> None:
-    if window_steps * n_all >= MAX_CODES:
-        raise ConfigError(f"{what}: {window_steps} steps x {n_all} cells do not fit a uint32 spike code; record a "
-                          "shorter window")
+def push(buf: SpikeBuffer, spikes, interval) -> SpikeBuffer:
+    """Append the (steps, n_all) bool block of the window's interval number ``interval`` (int32): its non-zero
+    32-bit words, in order. Slots past the capacity are dropped by the scatter and counted in ``used``."""
+    steps, n_all = spikes.shape
+    wpi = words_per_interval(steps, n_all)
+    flat = jnp.pad(spikes.reshape(-1), (0, wpi * WORD_BITS - steps * n_all)).reshape(wpi, WORD_BITS)
+    bits = jnp.sum(flat.astype(jnp.uint32) << jnp.arange(WORD_BITS, dtype=jnp.uint32), axis=1, dtype=jnp.uint32)
+    nonzero = bits != 0
+    capacity = buf.word.shape[0]
+    index = jnp.where(nonzero, buf.used + jnp.cumsum(nonzero, dtype=jnp.int32) - 1, capacity)   # capacity: dropped
+    codes = interval.astype(jnp.uint32) * jnp.uint32(wpi) + jnp.arange(wpi, dtype=jnp.uint32)
+    return SpikeBuffer(word=buf.word.at[index].set(codes, mode="drop"), bits=buf.bits.at[index].set(bits, mode="drop"),
+                       used=buf.used + jnp.sum(nonzero, dtype=jnp.int32),
+                       count=buf.count + jnp.sum(spikes, dtype=jnp.int32))
+
+
+def check_window(n_all: int, steps_per_interval: int, intervals: int, what: str) -> None:
+    if intervals * words_per_interval(steps_per_interval, n_all) >= MAX_CODES:
+        raise ConfigError(f"{what}: {intervals} intervals x {steps_per_interval} steps x {n_all} cells do not fit "
+                          "a uint32 word code; record a shorter window")
 
 
 def batch_bytes(n_networks: int, capacity: int) -> int:
-    return n_networks * capacity * BYTES_PER_SPIKE
+    return n_networks * capacity * BYTES_PER_SLOT
 
 
 def check_memory(config: RecordConfig, n_networks: int, windows: dict[str, int]) -> dict:
@@ -139,28 +156,35 @@ def check_memory(config: RecordConfig, n_networks: int, windows: dict[str, int])
     if max(device, host) > config.max_mb * 1e6:
         worst = max(windows, key=windows.get)
         raise ConfigError(f"--record-spikes: the spike buffers need {max(device, host) / 1e6:.0f} MB ({n_networks} "
-                          f"networks x {windows[worst]} spikes x {BYTES_PER_SPIKE} B for the {worst} window; capacity "
+                          f"networks x {windows[worst]} slots x {BYTES_PER_SLOT} B for the {worst} window; capacity "
                           f"= --record-max-rate-hz {config.max_rate_hz:g} Hz x cells x window s), above --record-max-mb "
                           f"{config.max_mb:g}: record fewer seconds or networks, lower the rate bound or raise the limit")
-    return {"device_bytes": device, "host_bytes": host, "bytes_per_spike": BYTES_PER_SPIKE}
+    return {"device_bytes": device, "host_bytes": host, "bytes_per_slot": BYTES_PER_SLOT}
 
 
-def check_overflow(counts, capacity: int, seeds, what: str, max_rate_hz: float) -> None:
-    """Fail if any network's window held more spikes than its buffer: an error naming the capacity and its bound."""
-    counts = np.asarray(counts).reshape(-1)[: len(seeds)]
-    bad = np.nonzero(counts > capacity)[0]
+def check_overflow(buffer: SpikeBuffer, capacity: int, seeds, what: str, max_rate_hz: float) -> None:
+    """Fail if any network's window needed more slots than its buffer: an error naming the capacity and its bound."""
+    used = np.asarray(buffer.used).reshape(-1)[: len(seeds)]
+    count = np.asarray(buffer.count).reshape(-1)
+    bad = np.nonzero(used > capacity)[0]
     if bad.size:
-        nets = ", ".join(f"{seeds[i]} ({int(counts[i])} spikes)" for i in bad[:10])
+        nets = ", ".join(f"{seeds[i]} ({int(count[i])} spikes in {int(used[i])} slots)" for i in bad[:10])
         raise RuntimeError(f"spike record of the {what}: network(s) of seed {nets} fired more than the buffer's "
-                           f"capacity of {capacity} spikes (--record-max-rate-hz {max_rate_hz:g} Hz x cells x window "
+                           f"capacity of {capacity} slots (--record-max-rate-hz {max_rate_hz:g} Hz x cells x window "
                            "s); raise --record-max-rate-hz")
 
 
-def decode(code, count, n_all: int, start_step: int) -> tuple[np.ndarray, np.ndarray]:
-    """(step, cell) of one network's recorded window: clock steps since the start of the run (t = step x dt_ms),
-    global cell ids."""
-    code = np.asarray(code)[: int(count)].astype(np.int64)
-    return (start_step + 1 + code // n_all).astype(np.int32), (code % n_all).astype(np.int16)
+def decode(word, bits, used, n_all: int, start_step: int, steps_per_interval: int) -> tuple[np.ndarray, np.ndarray]:
+    """(step, cell) of one network's recorded window, ordered by step then cell: clock steps since the start of
+    the run (a spike at step s happened in ((s - 1) dt, s dt]), global cell ids."""
+    n = min(int(used), len(word))
+    wpi = words_per_interval(steps_per_interval, n_all)
+    interval, k = np.divmod(np.asarray(word)[:n].astype(np.int64), wpi)
+    on = (np.asarray(bits)[:n].astype(np.uint64)[:, None] >> np.arange(WORD_BITS, dtype=np.uint64)) & np.uint64(1)
+    slot, bit = np.nonzero(on)
+    step_in, cell = np.divmod(k[slot] * WORD_BITS + bit, n_all)
+    return ((start_step + 1 + interval[slot] * steps_per_interval + step_in).astype(np.int32),
+            cell.astype(np.int16))
 
 
 # -- the file ---------------------------------------------------------------------------------------------------------
@@ -185,18 +209,20 @@ def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms:
     ``W.hand_m``, ``W.u``.
     """
     n_all = int(pop_stop[-1])
+    steps_per_interval = round(interval_ms / dt_ms)
     out: dict[str, Any] = {"windows": np.asarray(list(windows)), "seeds": np.asarray(seeds)[list(networks)],
                            "networks": np.asarray(networks, np.int32), "dt_ms": np.float64(dt_ms),
                            "interval_ms": np.float64(interval_ms), "n_all": np.int32(n_all),
                            "populations": np.asarray(populations), "pop_start": np.asarray(pop_start, np.int32),
                            "pop_stop": np.asarray(pop_stop, np.int32), "group": np.asarray(group, np.int8),
                            "max_rate_hz": np.float64(config.max_rate_hz),
-                           "bytes_per_spike": np.int32(BYTES_PER_SPIKE), "arm": np.asarray(arm)}
+                           "bytes_per_slot": np.int32(BYTES_PER_SLOT), "arm": np.asarray(arm)}
     for name, w in windows.items():
         rec, start = w["recording"], int(w["start_step"])
         steps, cells, offsets = [], [], [0]
         for k in networks:
-            s, c = decode(rec.spikes.code[k], rec.spikes.count[k], n_all, start)
+            s, c = decode(rec.spikes.word[k], rec.spikes.bits[k], rec.spikes.used[k], n_all, start,
+                          steps_per_interval)
             steps.append(s)
             cells.append(c)
             offsets.append(offsets[-1] + len(s))

@@ -275,7 +275,7 @@ class Batch:
         if result.record is not None:
             from jaxarm import record as rec_mod
 
-            rec_mod.check_overflow(result.record.spikes.count, self.record_capacity["test"], self.seeds, what,
+            rec_mod.check_overflow(result.record.spikes, self.record_capacity["test"], self.seeds, what,
                                    self.record.max_rate_hz)
         return result
 
@@ -284,7 +284,7 @@ class Batch:
         from jaxarm import record as rec_mod
 
         recording = jax.tree.map(lambda x: np.asarray(x)[: self.n], parallel.host(recording))
-        rec_mod.check_overflow(recording.spikes.count, capacity, self.seeds, what, self.record.max_rate_hz)
+        rec_mod.check_overflow(recording.spikes, capacity, self.seeds, what, self.record.max_rate_hz)
         return recording
 
     def naive(self) -> Trained:

@@ -120,9 +120,9 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
                                                         - record.train_last_s) > 1e-9:
             raise ConfigError(f"--record-train-s {record.train_last_s:g}: must be a multiple of "
                               f"{task.update_interval_s * 1000:g} ms and at most the epoch, {task.epoch_duration_s:g} s")
-        rec_mod.check_window(n_all, rec_intervals * loop.steps_per_interval, "--record-train-s")
+        rec_mod.check_window(n_all, loop.steps_per_interval, rec_intervals, "--record-train-s")
     if record is not None:
-        rec_mod.check_window(n_all, task.test_steps * loop.steps_per_interval, "--test-s")
+        rec_mod.check_window(n_all, loop.steps_per_interval, task.test_steps, "--test-s")
 
     def _recorded_segments(tr, state, k1, k2, mp):
         """The epoch's intervals as ``epoch`` runs them (the same keys, the same order), the last ``rec_intervals``
