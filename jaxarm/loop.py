@@ -261,17 +261,19 @@ class ClosedLoop:
 
         return jax.lax.scan(body, state, keys)
 
-    def run_recorded(self, wiring, state: LoopState, keys, mp: MetaParams, learn: bool, buf, start_step):
+    def run_recorded(self, wiring, state: LoopState, keys, mp: MetaParams, learn: bool, buf, start_step,
+                     muscles: bool = True):
         """:meth:`run_keys` that also appends every spike to ``buf`` (a :class:`jaxarm.record.SpikeBuffer` of a
         window that began after clock step ``start_step``). Returns (state, IntervalRecord, buf, MuscleObs per
-        interval or None); state and IntervalRecord equal :meth:`run_keys`'s."""
+        interval, or None for the simple arm or without ``muscles`` (static): stacking them is not free); state and
+        IntervalRecord equal :meth:`run_keys`'s."""
         from jaxarm import record as rec_mod
 
         def body(carry, k):
             s, b = carry
             interval = (s.net.step - start_step) // self.steps_per_interval
-            s, rec, spikes, muscles = self.interval(wiring, s, k, mp, learn, record=True)
-            return (s, rec_mod.push(b, spikes, interval)), (rec, muscles)
+            s, rec, spikes, obs_muscles = self.interval(wiring, s, k, mp, learn, record=True)
+            return (s, rec_mod.push(b, spikes, interval)), (rec, obs_muscles if muscles else None)
 
-        (state, buf), (rec, muscles) = jax.lax.scan(body, (state, buf), keys)
-        return state, rec, buf, muscles
+        (state, buf), (rec, stacked) = jax.lax.scan(body, (state, buf), keys)
+        return state, rec, buf, stacked

@@ -141,7 +141,8 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
             if cut < n:
                 if counts0 is None:
                     counts0 = state.net.spike_count
-                state, r, buf, muscles = loop.run_recorded(tr.wiring, state, keys[cut:], mp, True, buf, start_step)
+                state, r, buf, _ = loop.run_recorded(tr.wiring, state, keys[cut:], mp, True, buf, start_step,
+                                                     muscles=False)
                 parts.append(r)
                 window.append(r)
             if counts_mid is None:
