@@ -29,7 +29,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -157,8 +156,9 @@ def check_memory(config: RecordConfig, n_networks: int, windows: dict[str, int])
         worst = max(windows, key=windows.get)
         raise ConfigError(f"--record-spikes: the spike buffers need {max(device, host) / 1e6:.0f} MB ({n_networks} "
                           f"networks x {windows[worst]} slots x {BYTES_PER_SLOT} B for the {worst} window; capacity "
-                          f"= --record-max-rate-hz {config.max_rate_hz:g} Hz x cells x window s), above --record-max-mb "
-                          f"{config.max_mb:g}: record fewer seconds or networks, lower the rate bound or raise the limit")
+                          f"= --record-max-rate-hz {config.max_rate_hz:g} Hz x cells x window s), above "
+                          f"--record-max-mb {config.max_mb:g}: record fewer seconds or networks, lower the rate bound "
+                          "or raise the limit")
     return {"device_bytes": device, "host_bytes": host, "bytes_per_slot": BYTES_PER_SLOT}
 
 
@@ -230,7 +230,8 @@ def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms:
         out |= {f"{name}.step": np.concatenate(steps) if steps else np.zeros(0, np.int32),
                 f"{name}.cell": np.concatenate(cells) if cells else np.zeros(0, np.int16),
                 f"{name}.offsets": np.asarray(offsets, np.int64),
-                f"{name}.t_start_ms": np.float64(start * dt_ms), f"{name}.t_stop_ms": np.float64(w["stop_step"] * dt_ms),
+                f"{name}.t_start_ms": np.float64(start * dt_ms),
+                f"{name}.t_stop_ms": np.float64(w["stop_step"] * dt_ms),
                 f"{name}.counts": np.asarray(rec.counts)[list(networks)].astype(np.int32),
                 f"{name}.capacity": np.int64(capacity[name]),
                 f"{name}.t_ms": start * dt_ms + interval_ms * np.arange(1, rows + 1),
@@ -313,7 +314,3 @@ class SpikeFile:
         if network not in nets:
             raise KeyError(f"{self.path}: network {network} was not recorded (recorded: {nets})")
         return nets.index(network)
-
-
-def host(tree):
-    return jax.tree.map(np.asarray, tree)

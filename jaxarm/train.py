@@ -119,7 +119,8 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
         if not 1 <= rec_intervals <= n_intervals or abs(rec_intervals * task.update_interval_s
                                                         - record.train_last_s) > 1e-9:
             raise ConfigError(f"--record-train-s {record.train_last_s:g}: must be a multiple of "
-                              f"{task.update_interval_s * 1000:g} ms and at most the epoch, {task.epoch_duration_s:g} s")
+                              f"{task.update_interval_s * 1000:g} ms and at most the epoch, "
+                              f"{task.epoch_duration_s:g} s")
         rec_mod.check_window(n_all, loop.steps_per_interval, rec_intervals, "--record-train-s")
     if record is not None:
         rec_mod.check_window(n_all, loop.steps_per_interval, task.test_steps, "--test-s")
