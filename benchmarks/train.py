@@ -1,10 +1,11 @@
 """Closed-loop training throughput: network + arm + plasticity, in network-seconds simulated per wall-second.
 
-    python benchmarks/train.py --json [--networks 60] [--arm simple] [--seconds 2] [--repeats 3]
+    python benchmarks/train.py --json [--networks 60] [--arm simple] [--seconds 2] [--repeats 3] [--record-s S]
 
 Each measurement compiles one training epoch of ``--seconds`` simulated seconds (original metaparameters, babbling,
 R-STDP on), vmapped over ``--networks`` networks (keys 0..N-1), runs it ``--repeats`` times and reports the median.
-Prints JSON: {"network_s_per_s": {"60": ...}, "compile_s": {...}, "config": {...}}.
+With ``--record-s S`` the epoch records every cell's spikes over its last S seconds (``jaxarm.record``,
+``jaxarm train --record-train-s``): the cost of recording. Prints JSON: {"network_s_per_s": {"60": ...}, "compile_s": {...}, "config": {...}}.
 """
 from __future__ import annotations
 
@@ -18,21 +19,25 @@ import time
 import jax
 
 
-def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto", threads: int | None = None):
+def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto", threads: int | None = None,
+            record_s: float = 0.0):
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
     from jaxarm.train import make_train
 
     from jaxarm.config.network import NetworkConfig
+    from jaxarm.record import RecordConfig
 
     fns = make_train(LoopConfig(arm=arm, task=TaskConfig(epochs=1, epoch_duration_s=seconds),
                                 network=NetworkConfig(kernel=kernel) if threads is None else
-                                NetworkConfig(kernel=kernel, native_threads=threads)))
+                                NetworkConfig(kernel=kernel, native_threads=threads)),
+                     record=RecordConfig(train_last_s=record_s) if record_s else None)
     mp = MetaParams.original()
     carry = jax.jit(jax.vmap(fns.init))(jax.random.split(jax.random.PRNGKey(0), n))
     t0 = time.perf_counter()
-    epoch = jax.jit(jax.vmap(fns.epoch, in_axes=(0, None))).lower(carry, mp).compile()
+    epoch_fn = fns.epoch_recorded if record_s else fns.epoch
+    epoch = jax.jit(jax.vmap(epoch_fn, in_axes=(0, None))).lower(carry, mp).compile()
     compile_s = time.perf_counter() - t0
     times = []
     for _ in range(repeats):
@@ -52,6 +57,8 @@ def main(argv=None) -> int:
     ap.add_argument("--kernel", default="auto", choices=["auto", "native", "xla"], help="NetworkConfig.kernel")
     ap.add_argument("--threads", type=int, default=None,
                     help="NetworkConfig.native_threads (default: $JAXARM_NATIVE_THREADS, else 1)")
+    ap.add_argument("--record-s", type=float, default=0.0,
+                    help="record every cell's spikes over the epoch's last S seconds (default 0: no recording)")
     args = ap.parse_args(argv)
     from jaxarm.config.network import NetworkConfig
 
@@ -62,7 +69,7 @@ def main(argv=None) -> int:
                                    "backend": jax.default_backend()}}
     for arm in args.arm:
         for n in args.networks:
-            rate, comp = measure(arm, n, args.seconds, args.repeats, args.kernel, args.threads)
+            rate, comp = measure(arm, n, args.seconds, args.repeats, args.kernel, args.threads, args.record_s)
             key = str(n) if len(args.arm) == 1 else f"{arm}_{n}"
             out["network_s_per_s"][key] = round(rate, 2)
             out["compile_s"][key] = round(comp, 1)

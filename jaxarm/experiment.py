@@ -14,7 +14,10 @@ Outputs in ``--out`` (one subfolder per target when several are given):
 per-epoch rates and weights averaged over networks, the full configuration), ``history.npz`` (the same per-epoch
 rates, gains, distances and critic counts for every network: arrays (epochs, networks, ...)), ``trajectories.npz``
 (t, q, hand, u, distance for the trained and naive networks), ``checkpoints/`` (orbax: wiring, learned gains, babbling state) and ``reach.png`` (hand paths
-and velocity profiles, trained vs naive, in the style of the paper's Fig. 6).
+and velocity profiles, trained vs naive, in the style of the paper's Fig. 6). With ``--record-spikes``: ``spikes.npz``
+(every cell's spikes in the tests, and with ``--record-train-s`` in the last seconds of chosen epochs;
+:mod:`jaxarm.record`) and, for the musculoskeletal arm, ``muscles.npz``; ``jaxarm figures`` and ``jaxarm video``
+draw them.
 """
 from __future__ import annotations
 
@@ -104,7 +107,89 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
                         naive_hand=np.asarray(naive_res.hand_m), target=target, seeds=np.asarray(seeds))
     plot_reach(run.out / "reach.png", t, np.asarray(trained_res.hand_m), np.asarray(naive_res.hand_m), target,
                task.success_radius_m, f"{run.config.arm} arm, {task.target} target")
+    if getattr(run, "record", None) is not None:
+        results["record"] = write_records(run, trained_res, naive_res)
+        (run.out / "results.json").write_text(json.dumps(results, indent=1))
     return results
+
+
+def write_records(run, trained_res, naive_res) -> dict:
+    """``spikes.npz`` (the tests' and recorded epochs' spikes) and, for the musculoskeletal arm, ``muscles.npz``
+    (the tests' muscles) of a recording run (:mod:`jaxarm.record`); returns what results.json says about them."""
+    from jaxarm import record as rec_mod
+    from jaxarm.network.populations import Populations
+    from jaxarm.config.network import POPULATIONS
+
+    net, task = run.config.network, run.config.task
+    steps = net.steps_per_interface
+    windows = {}
+    for name, res in (("test", trained_res), ("naive_test", naive_res)):
+        if res.record is not None:
+            windows[name] = {"recording": res.record, "start_step": 0, "stop_step": task.test_steps * steps}
+    for e, rec in sorted(run.epoch_records.items()):
+        n_rec = round(run.record.train_last_s / task.update_interval_s)
+        windows[f"epoch_{e}"] = {"recording": rec, "start_step": (task.epoch_steps - n_rec) * steps,
+                                 "stop_step": task.epoch_steps * steps}
+    pops = Populations(net)
+    group = np.full(net.n_all, -1, np.int8)
+    group[pops.slice("EM")] = pops.em_groups()
+    group[pops.slice("P")] = pops.p_groups()
+    networks = run.recorded_networks()
+    rec_mod.save_spikes(run.out / rec_mod.SPIKES_FILE, windows, seeds=run.seeds, networks=networks,
+                        dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=POPULATIONS,
+                        pop_start=[pops.start[p] for p in POPULATIONS], pop_stop=[pops.stop[p] for p in POPULATIONS],
+                        group=group,
+                        capacity=run.record_capacity, config=run.record, arm=run.config.arm)
+    files = [rec_mod.SPIKES_FILE]
+    if run.config.arm == "musculoskeletal":
+        from jaxarm.arm.musculoskeletal import GROUP_MUSCLES
+
+        arm = run.fns.loop.arm
+        groups = [next((g for g, names in enumerate(GROUP_MUSCLES) if m in names), -1) for m in arm.muscle_names]
+        if rec_mod.save_muscles(run.out / rec_mod.MUSCLES_FILE, {n: w["recording"] for n, w in windows.items()
+                                                                  if n in ("test", "naive_test")},
+                                seeds=run.seeds, networks=networks, muscle_names=arm.muscle_names, groups=groups,
+                                interval_ms=net.interface_ms):
+            files.append(rec_mod.MUSCLES_FILE)
+    return {"files": files, "windows": list(windows), "networks": networks,
+            "capacity_spikes": run.record_capacity, "max_rate_hz": run.record.max_rate_hz,
+            "memory_bound": run.record_memory,
+            "spikes": {name: [int(c) for c in np.asarray(w["recording"].spikes.count)[networks]]
+                       for name, w in windows.items()}}
+
+
+def add_record_arguments(ap, train: bool) -> None:
+    """The spike-recording options of `jaxarm train` (``train``) and `jaxarm test`."""
+    g = ap.add_argument_group("spike recording (jaxarm.record; off by default, and then the loop is unchanged)")
+    g.add_argument("--record-spikes", action="store_true",
+                   help="record every cell's spikes in the tests (trained and naive) into OUT/spikes.npz, and each "
+                        "muscle's activation, forces and lengths into OUT/muscles.npz (musculoskeletal arm)")
+    g.add_argument("--record-networks", type=int, nargs="+", default=[], metavar="K",
+                   help="write the records of these networks only (0-based indices in the run; default all)")
+    g.add_argument("--record-max-rate-hz", type=float, default=50.0,
+                   help="bound on the mean rate over all cells that sizes each window's buffer (default 50 Hz: "
+                        "35,200 slots, 282 KB per network per recorded second); a network whose spikes need more "
+                        "slots is an error")
+    g.add_argument("--record-max-mb", type=float, default=1024.0,
+                   help="refuse recording buffers above this many MB for the batch (default 1024)")
+    if train:
+        g.add_argument("--record-train-s", type=float, default=0.0, metavar="S",
+                       help="also record the last S seconds of the epochs in --record-epochs (default 0: tests only)")
+        g.add_argument("--record-epochs", type=int, nargs="+", default=[], metavar="E",
+                       help="1-based epochs whose last --record-train-s seconds are recorded (default: the last)")
+
+
+def record_config(args):
+    """The RecordConfig of a command's options, or None without --record-spikes (and without --record-train-s)."""
+    from jaxarm.record import RecordConfig
+
+    train_s = getattr(args, "record_train_s", 0.0)
+    if not (args.record_spikes or train_s):
+        if args.record_networks or getattr(args, "record_epochs", None):
+            raise ConfigError("--record-networks/--record-epochs need --record-spikes")
+        return None
+    return RecordConfig(max_rate_hz=args.record_max_rate_hz, max_mb=args.record_max_mb, train_last_s=train_s,
+                        epochs=tuple(getattr(args, "record_epochs", ()) or ()), networks=tuple(args.record_networks))
 
 
 def _jsonable(x):
@@ -203,6 +288,7 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-readout-clip", dest="readout_clip", action="store_const", const=False, default=None,
                     help="do not clip the motor excitations to [0, 1] (the hoc code does not; the default clips, as "
                          "the paper's thresholded readout and every published preset; NetworkConfig.readout_clip)")
+    add_record_arguments(ap, train=True)
     parallel.add_arguments(ap)
     args = ap.parse_args(argv)
     _check(ap, args)
@@ -212,16 +298,20 @@ def train_main(argv: list[str] | None = None) -> int:
         overrides = _parse_overrides(args.overrides)
         if "epochs" in overrides:
             raise ConfigError("--set epochs: use --epochs for the training length")
+        record = record_config(args)
     except ConfigError as e:
         ap.error(str(e))
     mp = MetaParams.from_dict(overrides)
     summary = {}
     for target, cfg in configs:
         out = args.out / target if len(configs) > 1 else args.out
-        run = Run(cfg, args.networks, args.seed, out, mp)
+        try:
+            run = Run(cfg, args.networks, args.seed, out, mp, record=record)
+        except ConfigError as e:
+            ap.error(str(e))
         carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress)
-        res = write_outputs(run, run.test(carry.trained), run.test(run.naive()), history, wall, epochs_run,
-                            compile_s)
+        res = write_outputs(run, run.test(carry.trained), run.test(run.naive(), "naive test"), history, wall,
+                            epochs_run, compile_s)
         summary[target] = res["success_count"]
         if parallel.is_main_process():
             print(f"{args.arm} arm, {target} target: {res['success_count']}/{args.networks} trained networks reached "
@@ -277,11 +367,13 @@ def test_main(argv: list[str] | None = None) -> int:
                          "instead of the streams it trained with, which the test re-uses by default as the original "
                          "re-seeds its noise identically at every run")
     _add_test_noise_option(ap)
+    add_record_arguments(ap, train=False)
     parallel.add_arguments(ap)
     args = ap.parse_args(argv)
     try:
         parallel.start_from_arguments(args)
         overrides = _parse_overrides(args.overrides)
+        record = record_config(args)
     except ConfigError as e:
         ap.error(str(e))
     from jaxarm.checkpoint import Checkpointer
@@ -304,12 +396,17 @@ def test_main(argv: list[str] | None = None) -> int:
                              | ({"crossing": args.crossing} if args.crossing else {}))
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
     out = args.out or args.src / "test"
-    if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
-        from jaxarm.run import stack_rows
+    try:
+        if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
+            from jaxarm.run import stack_rows
 
-        run = SetsRun(cfg, meta["seed"], out, stack_rows([MetaParams.from_dict(m) for m in meta["metaparams"]]))
-    else:
-        run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]))
+            run = SetsRun(cfg, meta["seed"], out, stack_rows([MetaParams.from_dict(m) for m in meta["metaparams"]]),
+                          record=record)
+        else:
+            run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]),
+                      record=record)
+    except ConfigError as e:
+        ap.error(str(e))
     carry, history = run.restore_trained(args.src / "checkpoints")
     if overrides:   # after the restore: the checkpoint was written with the trained metaparameters
         run.override(overrides)
@@ -318,7 +415,7 @@ def test_main(argv: list[str] | None = None) -> int:
         if args.fresh_noise < 0:
             ap.error(f"--fresh-noise = {args.fresh_noise}: must be >= 0")
         trained, naive = (fresh_noise(t, args.fresh_noise) for t in (trained, naive))
-    res = write_outputs(run, run.test(trained), run.test(naive), history, 0.0, 0)
+    res = write_outputs(run, run.test(trained), run.test(naive, "naive test"), history, 0.0, 0)
     if parallel.is_main_process():
         print(f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
     return 0

@@ -209,11 +209,13 @@ class ClosedLoop:
 
         return jax.lax.scan(body, arm_state, None, length=self.arm_steps)[0]
 
-    def interval(self, wiring, state: LoopState, key, mp: MetaParams, learn: bool):
-        """One 10 ms interface period (see module docstring). ``learn`` is static."""
+    def interval(self, wiring, state: LoopState, key, mp: MetaParams, learn: bool, record: bool = False):
+        """One 10 ms interface period (see module docstring). ``learn`` and ``record`` are static. With ``record``
+        it returns (state, IntervalRecord, spikes (steps, n_all) bool of the interval, the arm's MuscleObs or
+        None) instead of (state, IntervalRecord); the state and record are the same either way."""
         c = self.config
         counts_before = state.net.spike_count
-        net, _ = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval, collect=False)
+        net, spikes = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval, collect=record)
         em_counts = ro.em_group_counts(c.network, net.spike_count - counts_before)
         readout = ro.push(state.readout, em_counts)
         # The loop's clock counts whole intervals (an integer), so its times are exact multiples of interface_ms
@@ -244,11 +246,34 @@ class ClosedLoop:
         state = LoopState(net=net, arm=arm_state, readout=readout, babble=babble,
                           err_hist_m=jnp.stack([state.err_hist_m[1], err]), last_rl_ms=last_rl,
                           last_scaling_ms=last_scaling, target=state.target)
+        if record:
+            return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal), spikes, obs.muscles
         return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal)
 
     def run(self, wiring, state: LoopState, key, mp: MetaParams, n_intervals: int, learn: bool):
         """``n_intervals`` interface periods by ``lax.scan``. Returns (state, IntervalRecord time-major)."""
+        return self.run_keys(wiring, state, jax.random.split(key, n_intervals), mp, learn)
+
+    def run_keys(self, wiring, state: LoopState, keys, mp: MetaParams, learn: bool):
+        """One interface period per key of ``keys`` (intervals, 2); :meth:`run` with the keys already split."""
         def body(s, k):
             return self.interval(wiring, s, k, mp, learn)
 
-        return jax.lax.scan(body, state, jax.random.split(key, n_intervals))
+        return jax.lax.scan(body, state, keys)
+
+    def run_recorded(self, wiring, state: LoopState, keys, mp: MetaParams, learn: bool, buf, start_step,
+                     muscles: bool = True):
+        """:meth:`run_keys` that also appends every spike to ``buf`` (a :class:`jaxarm.record.SpikeBuffer` of a
+        window that began after clock step ``start_step``). Returns (state, IntervalRecord, buf, MuscleObs per
+        interval, or None for the simple arm or without ``muscles`` (static): stacking them is not free); state and
+        IntervalRecord equal :meth:`run_keys`'s."""
+        from jaxarm import record as rec_mod
+
+        def body(carry, k):
+            s, b = carry
+            interval = (s.net.step - start_step) // self.steps_per_interval
+            s, rec, spikes, obs_muscles = self.interval(wiring, s, k, mp, learn, record=True)
+            return (s, rec_mod.push(b, spikes, interval)), (rec, obs_muscles if muscles else None)
+
+        (state, buf), (rec, stacked) = jax.lax.scan(body, (state, buf), keys)
+        return state, rec, buf, stacked

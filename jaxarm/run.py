@@ -13,6 +13,7 @@ run started again with the same command resumes from its last completed epoch an
 from __future__ import annotations
 
 import functools
+import sys
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -21,6 +22,7 @@ import jax
 import numpy as np
 
 from jaxarm import parallel
+from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import NAMES, MetaParams
 from jaxarm.loop import LoopConfig
 from jaxarm.network import Network, NetworkConfig
@@ -34,15 +36,18 @@ TEST_KEY_FOLD = 7
 
 
 @functools.lru_cache(maxsize=16)
-def compiled(config: LoopConfig, mesh) -> tuple:
-    """``make_train(config)`` and its init / epoch / test, ``vmap``-ed over networks (keys, metaparameters and
-    targets all per network) and sharded over ``mesh``; shared by every batch of the same configuration."""
-    fns = make_train(config)
+def compiled(config: LoopConfig, mesh, record=None) -> tuple:
+    """``make_train(config, record)`` and its init / epoch / test / epoch_recorded (None unless recording epochs),
+    ``vmap``-ed over networks (keys, metaparameters and targets all per network) and sharded over ``mesh``; shared
+    by every batch of the same configuration."""
+    fns = make_train(config, record)
     b = parallel.BATCHED
     init = parallel.shard(jax.vmap(fns.init), b, b, mesh)
     epoch = parallel.shard(jax.vmap(fns.epoch), (b, b, b), b, mesh)
     test = parallel.shard(jax.vmap(fns.test), (b, b, b, b), b, mesh)
-    return fns, init, epoch, test
+    epoch_recorded = (None if fns.epoch_recorded is None else
+                      parallel.shard(jax.vmap(fns.epoch_recorded), (b, b, b), b, mesh))
+    return fns, init, epoch, test, epoch_recorded
 
 
 def network_keys(seeds) -> np.ndarray:
@@ -73,7 +78,7 @@ class Batch:
     the batch (what a checkpoint must match to be resumed). ``mesh``: the devices (default: all of them)."""
 
     def __init__(self, config: LoopConfig, seeds, mps: MetaParams, targets: Target, out: Path, description: dict,
-                 mesh=None):
+                 mesh=None, record=None):
         self.config, self.out = config, Path(out)
         self.seeds = [int(s) for s in seeds]
         self.n = len(self.seeds)
@@ -82,7 +87,31 @@ class Batch:
         self.mps, self.targets, self.description = mps, targets, description
         self.mesh = parallel.mesh() if mesh is None else mesh
         self.n_padded = parallel.padded_size(self.n, self.mesh)
-        self.fns, self.init_fn, self.epoch_fn, self.test_fn = compiled(config, self.mesh)
+        #: the RecordConfig (jaxarm.record) or None; its windows' capacities and memory bound; the epochs recorded
+        #: by this invocation of :meth:`train` (1-based epoch -> host Recording of the real networks)
+        self.record, self.record_capacity, self.record_memory, self.epoch_records = record, {}, None, {}
+        if record is not None:
+            self._check_record()
+        self.fns, self.init_fn, self.epoch_fn, self.test_fn, self.epoch_rec_fn = compiled(config, self.mesh, record)
+
+    def _check_record(self) -> None:
+        """The windows' buffer capacities (spikes per network) and the memory bound, refused above the limit."""
+        from jaxarm import record as rec_mod
+
+        rec, task, net = self.record, self.config.task, self.config.network
+        bad = [k for k in rec.networks if k >= self.n]
+        if bad:
+            raise ConfigError(f"--record-networks {' '.join(map(str, bad))}: the run has {self.n} networks (0.."
+                              f"{self.n - 1})")
+        test = rec.capacity(net.n_all, task.test_steps * net.interface_ms)
+        self.record_capacity = {"test": test, "naive_test": test}
+        for e in rec.recorded_epochs(task.epochs):
+            self.record_capacity[f"epoch_{e}"] = rec.capacity(net.n_all, rec.train_last_s * 1000.0)
+        self.record_memory = rec_mod.check_memory(rec, self.n_padded, self.record_capacity)
+
+    def recorded_networks(self) -> list[int]:
+        """Indices of the networks whose records are written."""
+        return sorted(set(self.record.networks)) if self.record and self.record.networks else list(range(self.n))
 
     # -- identity -------------------------------------------------------------------------------------------------
     def meta(self) -> dict:
@@ -198,15 +227,28 @@ class Batch:
                 self.check_resumable(saved)
                 carry, history = self._restore(ckpt, carry, history, saved)
                 done = int(ckpt.latest_step())
+            last = epochs if stop_after is None else min(epochs, done + stop_after)
+            recorded = self.record.recorded_epochs(epochs) if self.record is not None else ()
+            skipped = [e for e in recorded if e <= done]
+            if skipped and parallel.is_main_process():
+                print(f"note: epoch(s) {', '.join(map(str, skipped))} finished before this invocation; their spikes "
+                      "are not recorded (train into a new --out to record them)", file=sys.stderr)
             t0 = time.perf_counter()
-            epoch_fn = self.epoch_fn.lower(carry, mps, targets).compile()
+            epoch_fn = (self.epoch_fn.lower(carry, mps, targets).compile()
+                        if any(e + 1 not in recorded for e in range(done, last)) else None)
+            epoch_rec_fn = (self.epoch_rec_fn.lower(carry, mps, targets).compile()
+                            if any(done < e <= last for e in recorded) else None)
             compile_s = time.perf_counter() - t0
             bar = _progress(epochs, done, progress and parallel.is_main_process(), self.description.get("label", ""))
             wall = 0.0
-            last = epochs if stop_after is None else min(epochs, done + stop_after)
             for e in range(done, last):
                 t0 = time.perf_counter()
-                carry, summary = epoch_fn(carry, mps, targets)
+                if e + 1 in recorded:
+                    carry, summary, recording = epoch_rec_fn(carry, mps, targets)
+                    self.epoch_records[e + 1] = self._host_recording(recording, f"epoch {e + 1}",
+                                                                     self.record_capacity[f"epoch_{e + 1}"])
+                else:
+                    carry, summary = epoch_fn(carry, mps, targets)
                 summary = jax.tree.map(lambda x: x[: self.n], parallel.host(summary))
                 wall += time.perf_counter() - t0
                 self.check_capacity(summary.lost_spikes, f"training epoch {e + 1}")
@@ -223,13 +265,27 @@ class Batch:
                 bar.close()
         return carry, history, wall, last - done, compile_s
 
-    def test(self, trained: Trained) -> TestResult:
-        """The 1 s test of every network (host arrays, padding dropped)."""
+    def test(self, trained: Trained, what: str = "test") -> TestResult:
+        """The 1 s test of every network (host arrays, padding dropped); with recording, ``result.record`` holds
+        its spikes (checked for overflow; ``what`` names the window in errors)."""
         mps, targets = self.batched_inputs()
         result = self.test_fn(self.keys(TEST_KEY_FOLD), trained, mps, targets)
         result = jax.tree.map(lambda x: x[: self.n], parallel.host(result))
         self.check_capacity(result.lost_spikes, "test")
+        if result.record is not None:
+            from jaxarm import record as rec_mod
+
+            rec_mod.check_overflow(result.record.spikes, self.record_capacity["test"], self.seeds, what,
+                                   self.record.max_rate_hz)
         return result
+
+    def _host_recording(self, recording, what: str, capacity: int):
+        """A Recording on the host, real networks only, checked for buffer overflow."""
+        from jaxarm import record as rec_mod
+
+        recording = jax.tree.map(lambda x: np.asarray(x)[: self.n], parallel.host(recording))
+        rec_mod.check_overflow(recording.spikes, capacity, self.seeds, what, self.record.max_rate_hz)
+        return recording
 
     def naive(self) -> Trained:
         """The untrained networks (on the mesh, padded), for the naive test."""
@@ -249,14 +305,15 @@ class Batch:
 class Run(Batch):
     """One target: networks ``seed .. seed + n - 1`` trained with one metaparameter set ``mp``."""
 
-    def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams, mesh=None):
+    def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams, mesh=None,
+                 record=None):
         self.mp, self.seed = mp, seed
         super().__init__(config, range(seed, seed + n_networks), stack_rows([mp] * n_networks),
                          Target.stack([config.task.target] * n_networks), out,
                          {"arm": config.arm, "backend": config.backend, "target": config.task.target,
                           "networks": n_networks, "seed": seed, "epochs": config.task.epochs,
                           "epoch_s": config.task.epoch_duration_s, "metaparams": mp.to_dict(),
-                          "label": f"{config.arm}/{config.task.target}"}, mesh)
+                          "label": f"{config.arm}/{config.task.target}"}, mesh, record)
 
     def meta(self) -> dict:
         return {k: v for k, v in super().meta().items() if k != "label"}
@@ -270,14 +327,14 @@ class SetsRun(Batch):
     is such a run. ``meta()["metaparams"]`` is the list of the N sets.
     """
 
-    def __init__(self, config: LoopConfig, seed: int, out: Path, mps: MetaParams, mesh=None):
+    def __init__(self, config: LoopConfig, seed: int, out: Path, mps: MetaParams, mesh=None, record=None):
         n = int(np.shape(mps.learn_rate)[0])
         self.mp, self.seed = mps, seed
         super().__init__(config, range(seed, seed + n), mps, Target.stack([config.task.target] * n), out,
                          {"arm": config.arm, "backend": config.backend, "target": config.task.target,
                           "networks": n, "seed": seed, "epochs": config.task.epochs,
                           "epoch_s": config.task.epoch_duration_s, "metaparams": [m.to_dict() for m in unstack(mps)],
-                          "label": f"{config.arm}/{config.task.target}"}, mesh)
+                          "label": f"{config.arm}/{config.task.target}"}, mesh, record)
 
     def meta(self) -> dict:
         return {k: v for k, v in super().meta().items() if k != "label"}

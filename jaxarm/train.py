@@ -20,6 +20,7 @@ from typing import Any, Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from jaxarm.config.validate import ConfigError
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, ClosedLoop, LoopConfig
@@ -67,6 +68,7 @@ class TestResult(NamedTuple):
     success: jnp.ndarray       # () bool: entered the success circle
     rates_hz: jnp.ndarray      # (6,) firing rates in the test, Hz
     lost_spikes: jnp.ndarray
+    record: Any = None         # jaxarm.record.Recording of the test when make_train was given a RecordConfig
 
 
 class TrainFns(NamedTuple):
@@ -77,7 +79,11 @@ class TrainFns(NamedTuple):
     init: Callable            # key -> EpochCarry
     epoch: Callable           # (carry, mp[, target]) -> (carry, EpochSummary)
     train: Callable           # (key, mp[, target]) -> (Trained, EpochSummary stacked over epochs)
-    test: Callable            # (key, Trained, mp[, target]) -> TestResult
+    test: Callable            # (key, Trained, mp[, target]) -> TestResult (with its record if recording)
+    #: with RecordConfig.train_last_s > 0: (carry, mp[, target]) -> (carry, EpochSummary, Recording of the epoch's
+    #: last train_last_s seconds); carry and summary equal ``epoch``'s
+    epoch_recorded: Callable | None = None
+    record: Any = None        # the RecordConfig (static), or None: nothing recorded, the loop compiled without it
 
 
 def _pop_rates(loop: ClosedLoop, counts, seconds):
@@ -86,12 +92,16 @@ def _pop_rates(loop: ClosedLoop, counts, seconds):
                       for p in POP_NAMES])
 
 
-def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
+def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
     """Build the pure training and test functions of one static configuration.
 
     Args:
         config (LoopConfig): the static configuration (arm, network, task, babbling, clock step in ms); compiled
             into the functions, so it is not traced.
+        record (jaxarm.record.RecordConfig | None): static spike recording. With it, the test also returns a
+            :class:`jaxarm.record.Recording` (spikes of every cell, the arm, the muscles) and, with
+            ``record.train_last_s`` > 0, ``epoch_recorded`` records an epoch's last seconds. Without it (the
+            default) the compiled loop holds no recording at all.
 
     Returns:
         TrainFns: ``init(key)``, ``epoch(carry, mp[, target])``, ``train(key, mp[, target])`` (all
@@ -100,6 +110,8 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
         :class:`~jaxarm.learning.metaparams.MetaParams` (each field in its own unit: ms, Hz or dimensionless).
         Each is pure: ``jit`` it and ``vmap`` it over keys (networks), metaparameter sets or targets.
     """
+    from jaxarm import record as rec_mod
+
     loop = ClosedLoop(config)
     net, task = loop.net, config.task
     n_intervals = task.epoch_steps
@@ -115,7 +127,54 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
                           babble=bab.init_babbling(config.babbling), noise_key=k_noise)
         return EpochCarry(trained=trained, key=k_babble, epoch=jnp.zeros((), jnp.int32))
 
+    n_all = config.network.n_all
+    rec_intervals = 0
+    if record is not None and record.train_last_s > 0:
+        rec_intervals = round(record.train_last_s / task.update_interval_s)
+        if not 1 <= rec_intervals <= n_intervals or abs(rec_intervals * task.update_interval_s
+                                                        - record.train_last_s) > 1e-9:
+            raise ConfigError(f"--record-train-s {record.train_last_s:g}: must be a multiple of "
+                              f"{task.update_interval_s * 1000:g} ms and at most the epoch, "
+                              f"{task.epoch_duration_s:g} s")
+        rec_mod.check_window(n_all, loop.steps_per_interval, rec_intervals, "--record-train-s")
+    if record is not None:
+        rec_mod.check_window(n_all, loop.steps_per_interval, task.test_steps, "--test-s")
+
+    def _recorded_segments(tr, state, k1, k2, mp):
+        """The epoch's intervals as ``epoch`` runs them (the same keys, the same order), the last ``rec_intervals``
+        recorded. Returns (state, IntervalRecord, spike counts after the first segment, Recording)."""
+        n1 = n_intervals - last10_intervals
+        start = n_intervals - rec_intervals
+        start_step = start * loop.steps_per_interval
+        buf = rec_mod.empty(record.capacity(n_all, rec_intervals * config.network.interface_ms))
+        parts, window, counts0, counts_mid = [], [], None, None
+        for keys, lo in ((jax.random.split(k1, n1), 0), (jax.random.split(k2, last10_intervals), n1)):
+            n = keys.shape[0]
+            cut = min(max(start - lo, 0), n)
+            if cut > 0:
+                state, r = loop.run_keys(tr.wiring, state, keys[:cut], mp, learn=True)
+                parts.append(r)
+            if cut < n:
+                if counts0 is None:
+                    counts0 = state.net.spike_count
+                state, r, buf, _ = loop.run_recorded(tr.wiring, state, keys[cut:], mp, True, buf, start_step,
+                                                     muscles=False)
+                parts.append(r)
+                window.append(r)
+            if counts_mid is None:
+                counts_mid = state.net.spike_count
+        cat = lambda rs: jax.tree_util.tree_map(lambda *a: jnp.concatenate(a), *rs)  # noqa: E731
+        rec, win = cat(parts), cat(window)
+        return state, rec, counts_mid, rec_mod.Recording(spikes=buf, counts=state.net.spike_count - counts0,
+                                                         hand_m=win.hand_m, q_rad=win.q_rad, u=win.u)
+
     def epoch(carry: EpochCarry, mp: MetaParams, target: Target | None = None):
+        return _epoch(carry, mp, target, False)
+
+    def epoch_recorded(carry: EpochCarry, mp: MetaParams, target: Target | None = None):
+        return _epoch(carry, mp, target, True)
+
+    def _epoch(carry: EpochCarry, mp: MetaParams, target: Target | None, recorded: bool):
         tr = carry.trained
         noise_key = jax.random.fold_in(tr.noise_key, carry.epoch) if config.reseed_noise_each_epoch else tr.noise_key
         babble = bab.start_epoch(tr.babble)
@@ -123,10 +182,13 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
         k_epoch = jax.random.fold_in(carry.key, carry.epoch)
         # Run all but the last 10 s, snapshot the spike counts, run the rest: rates over the last 10 s as the spec.
         k1, k2 = jax.random.split(k_epoch)
-        state, rec1 = loop.run(tr.wiring, state, k1, mp, n_intervals - last10_intervals, learn=True)
-        counts_mid = state.net.spike_count
-        state, rec2 = loop.run(tr.wiring, state, k2, mp, last10_intervals, learn=True)
-        rec = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), rec1, rec2)
+        if recorded:
+            state, rec, counts_mid, recording = _recorded_segments(tr, state, k1, k2, mp)
+        else:
+            state, rec1 = loop.run(tr.wiring, state, k1, mp, n_intervals - last10_intervals, learn=True)
+            counts_mid = state.net.spike_count
+            state, rec2 = loop.run(tr.wiring, state, k2, mp, last10_intervals, learn=True)
+            rec = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), rec1, rec2)
         counts = state.net.spike_count
         dist = jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1)
         wgain = state.net.wgain
@@ -139,7 +201,8 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
             rewards=jnp.sum(rec.critic > 0), punishments=jnp.sum(rec.critic < 0),
             lost_spikes=state.net.counters.lost_spikes)
         trained = tr._replace(wgain=wgain, babble=state.babble)
-        return EpochCarry(trained=trained, key=carry.key, epoch=carry.epoch + 1), summary
+        carry = EpochCarry(trained=trained, key=carry.key, epoch=carry.epoch + 1)
+        return (carry, summary, recording) if recorded else (carry, summary)
 
     def train(key, mp: MetaParams, target: Target | None = None):
         carry = init(key)
@@ -156,16 +219,25 @@ def make_train(config: LoopConfig = LoopConfig()) -> TrainFns:
             state = state._replace(net=state.net._replace(noise=noise_mod.limit_em_events(
                 config.network, state.net.noise, jnp.ceil(number - 1e-4).astype(jnp.int32))))
         hand0, q0 = loop.arm.observe(state.arm).hand, loop.arm.observe(state.arm).q
-        state, rec = loop.run(trained.wiring, state, key, mp, task.test_steps, learn=False)
+        recording = None
+        if record is None:
+            state, rec = loop.run(trained.wiring, state, key, mp, task.test_steps, learn=False)
+        else:
+            buf = rec_mod.empty(record.capacity(n_all, task.test_steps * config.network.interface_ms))
+            state, rec, buf, muscles = loop.run_recorded(trained.wiring, state, jax.random.split(key, task.test_steps),
+                                                         mp, False, buf, 0)
+            recording = rec_mod.Recording(spikes=buf, counts=state.net.spike_count, hand_m=rec.hand_m,
+                                          q_rad=rec.q_rad, u=rec.u, muscles=muscles)
         hand = jnp.concatenate([hand0[None], rec.hand_m])
         q = jnp.concatenate([q0[None], rec.q_rad])
         dist = jnp.linalg.norm(hand - state.target.xy_m, axis=-1)
         return TestResult(hand_m=hand, q_rad=q, u=rec.u, distance_m=dist, min_distance_m=dist.min(),
                           final_distance_m=dist[-1], success=jnp.any(dist <= task.success_radius_m),
                           rates_hz=_pop_rates(loop, state.net.spike_count, task.test_duration_s),
-                          lost_spikes=state.net.counters.lost_spikes)
+                          lost_spikes=state.net.counters.lost_spikes, record=recording)
 
-    return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=test)
+    return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=test,
+                    epoch_recorded=epoch_recorded if rec_intervals else None, record=record)
 
 
 def _pathways():

@@ -1,0 +1,123 @@
+"""`jaxarm figures` and `jaxarm video` on tiny recorded runs: every named file is written, the data beside a figure
+agrees with the spike record, the video decodes to the frames and size asked for, and bad options are one-line
+errors."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from jaxarm.cli import main
+
+#: Every file `jaxarm figures --grid --robot-log` writes for a simple-arm run recorded with --record-spikes.
+SIMPLE_FILES = ("fig5_raster.png", "fig5_raster.npz", "rates.png", "rates.csv", "rates_epochs.csv",
+                "fig5_raster_grid.png", "fig5_raster_grid.npz", "fig6_reach.png", "fig6_reach.npz",
+                "fig6_reach_grid.png", "fig6_reach_grid.npz", "fig7_jerk.png", "fig7_jerk.csv", "fig7_jerk.npz",
+                "fig9_robot.png", "fig9_robot.npz", "fig10_robot.png", "fig10_robot.json", "figures.json")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """Two simple-arm networks, one 0.2 s epoch, a 1 s test, spikes recorded."""
+    out = tmp_path_factory.mktemp("figures") / "run"
+    assert main(["train", "--networks", "2", "--epochs", "1", "--epoch-s", "0.2", "--test-s", "1.0", "--out",
+                 str(out), "--no-progress", "--record-spikes"]) == 0
+    return out
+
+
+def _robot_log(path):
+    """A wam-sim style CSV: the robot follows a smooth target 0.1 s late, a packet every 14 ms."""
+    t = np.arange(0.0, 3.0, 0.002)
+    target = np.column_stack([0.6 + 0.3 * np.sin(t), 1.5 + 0.2 * np.sin(1.3 * t)])
+    robot = np.column_stack([0.6 + 0.3 * np.sin(t - 0.1), 1.5 + 0.2 * np.sin(1.3 * (t - 0.1))])
+    new = (np.arange(len(t)) % 7 == 0).astype(float)
+    np.savetxt(path, np.column_stack([t, target, robot, new]), delimiter=",", comments="",
+               header="t,target_shoulder,target_elbow,robot_shoulder,robot_elbow,new_target")
+    return path
+
+
+def test_figures_writes_every_named_file_and_its_data_matches_the_record(run, tmp_path, capsys):
+    from jaxarm.record import SpikeFile
+
+    out = tmp_path / "fig"
+    assert main(["figures", str(run), "--out", str(out), "--network", "1", "--grid", "--robot-log",
+                 str(_robot_log(tmp_path / "robot.csv"))]) == 0
+    for name in SIMPLE_FILES:
+        assert (out / name).stat().st_size > 0, name
+    manifest = json.loads((out / "figures.json").read_text())
+    assert sorted(f for files in manifest["written"].values() for f in files) == sorted(SIMPLE_FILES[:-1])
+    assert "simple arm has no muscles" in manifest["skipped"]["muscles"]
+    # the rates are the record's spikes per population, per cell and second: back to counts they sum to the record
+    f = SpikeFile(run / "spikes.npz")
+    counts = f.get("test", "counts")[1]
+    with open(out / "rates.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 100                                   # 1 s in 10 ms bins
+    for pop in ("P", "ES", "EM", "IML"):
+        n_cells = f.pop_stop[pop] - f.pop_start[pop]
+        total = sum(float(r[f"{pop}_hz"]) * n_cells * (float(r["t_stop_ms"]) - float(r["t_start_ms"])) / 1000
+                    for r in rows)
+        assert total == pytest.approx(counts[f.pop_start[pop]:f.pop_stop[pop]].sum(), abs=1e-3)
+    raster = np.load(out / "fig5_raster.npz")
+    assert len(raster["t_ms"]) == counts.sum() and int(raster["seed"]) == int(f.seeds[1])
+    # P at the top of the raster, IML at the bottom (the paper's Fig. 5 order)
+    assert raster["row"][raster["cell"] >= f.pop_start["P"]].max() < 192
+    jerk = list(csv.DictReader(open(out / "fig7_jerk.csv")))
+    assert [int(r["seed"]) for r in jerk] == f.seeds.tolist()
+    assert "fig9_robot.png" in capsys.readouterr().out
+
+
+def test_figures_without_a_spike_record_draws_the_rest_and_says_how_to_record(run, tmp_path, capsys):
+    import shutil
+
+    bare = tmp_path / "bare"
+    shutil.copytree(run, bare, ignore=shutil.ignore_patterns("spikes.npz", "checkpoints"))
+    assert main(["figures", str(bare), "--out", str(tmp_path / "f")]) == 0
+    err = capsys.readouterr().err
+    assert "skipped fig5_raster: no spikes.npz" in err and "--record-spikes" in err
+    assert (tmp_path / "f" / "fig6_reach.png").is_file() and not (tmp_path / "f" / "fig5_raster.png").exists()
+    for argv, msg in (([str(run), "--network", "2"], "--network 2: the run has 2 networks (0..1)"),
+                      ([str(tmp_path / "nowhere")], "no results.json and trajectories.npz"),
+                      ([str(run), "--window", "epoch_9"], "no window 'epoch_9'")):
+        with pytest.raises(SystemExit):
+            main(["figures", "--out", str(tmp_path / "g")] + argv)
+        assert msg in capsys.readouterr().err
+
+
+def test_video_of_a_1s_test_decodes_to_the_frames_and_size_asked(run, tmp_path, capsys):
+    import imageio.v2 as imageio
+
+    out = tmp_path / "reach.mp4"
+    assert main(["video", str(run), "--network", "1", "--out", str(out), "--fps", "12", "--size", "320x240",
+                 "--no-progress"]) == 0
+    reader = imageio.get_reader(out)
+    frames = [frame for frame in reader]
+    reader.close()
+    assert len(frames) == 12 and frames[0].shape == (240, 320, 3)
+    assert np.std(frames[-1]) > 0                              # something was drawn
+    assert main(["video", str(run), "--out", str(tmp_path / "part.mp4"), "--fps", "10", "--start-s", "0.25",
+                 "--stop-s", "0.75", "--size", "160x120", "--no-progress"]) == 0
+    assert sum(1 for _ in imageio.get_reader(tmp_path / "part.mp4")) == 5
+    for argv, msg in ((["--size", "321x240"], "both even"), (["--stop-s", "2"], "stop <= 1 s"),
+                      (["--fps", "0"], "--fps 0: must be in [1, 120]")):
+        with pytest.raises(SystemExit):
+            main(["video", str(run), "--out", str(tmp_path / "x.mp4")] + argv)
+        assert msg in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_musculoskeletal_run_draws_its_muscles(tmp_path):
+    """The musculoskeletal arm's run writes muscles.npz; figures draws it and the video draws its 22 paths."""
+    import imageio.v2 as imageio
+
+    run = tmp_path / "ms"
+    assert main(["train", "--arm", "musculoskeletal", "--networks", "2", "--epochs", "1", "--epoch-s", "0.1",
+                 "--test-s", "0.3", "--out", str(run), "--no-progress", "--record-spikes"]) == 0
+    assert main(["figures", str(run), "--out", str(tmp_path / "f"), "--network", "1"]) == 0
+    data = np.load(tmp_path / "f" / "muscles.npz")
+    assert data["activation"].shape == (30, 22) and len(data["muscle_names"]) == 22
+    rec = np.load(run / "muscles.npz")
+    np.testing.assert_array_equal(data["force_n"], rec["test.force_n"][1])
+    assert main(["video", str(run), "--out", str(tmp_path / "m.mp4"), "--fps", "10", "--size", "320x180",
+                 "--no-progress"]) == 0
+    assert sum(1 for _ in imageio.get_reader(tmp_path / "m.mp4")) == 3
