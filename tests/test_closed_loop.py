@@ -168,6 +168,7 @@ def test_angle_critic_compares_joint_space_distance():
     assert errors["xy"][1] < errors["xy"][0] and errors["angle"][1] > errors["angle"][0]
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_reaching_fitness_is_registered_and_finite():
     from jaxarm.evolve import fitness
 
@@ -299,6 +300,7 @@ def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
         mod.curve_for_target("simple", "left", mp, 2, 2, 6, tmp_path / "a", epoch_s=0.3, log=quiet)
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
     from jaxarm.cli import main
 

@@ -127,6 +127,7 @@ def test_overflow_and_memory_bounds_fail_naming_the_option(tmp_path):
         run.test(run.naive())
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_train_and_test_commands_write_the_spike_file(tmp_path, capsys):
     """`jaxarm train --record-spikes` writes spikes.npz whose per-network spike lists equal the counts it saves,
     with the bound in results.json; `jaxarm test --record-networks 1` writes network 1 only."""

@@ -80,6 +80,7 @@ def two_processes(args: list[str], out, tmp_path) -> None:
         assert p.returncode == 0, log[-3000:]
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_two_processes_train_and_search_like_one(tmp_path):
     """`jaxarm train` and a 2-generation CMA-ES `jaxarm evolve` (5 candidates x 2 seeds, padded to the devices) in two
     processes on 127.0.0.1 against this process (two devices): identical results.json networks, trajectories,
