@@ -17,7 +17,7 @@ One step advances ``config.dt_s`` (1 ms by default) of simulated time (SI units 
 width (``jaxarm.config.arm.SMOOTH_KINKS``; the widths are
 :mod:`jaxarm.arm.muscle`'s ``W_*`` and :data:`W_JOINT_LIMIT_RAD`): the arm to differentiate through.
 
-The arm computes in JAX's default float type (float32; float64 under ``jax.experimental.enable_x64``, which the
+The arm computes in JAX's default float type (float32; float64 under ``jax.enable_x64``, which the
 finite-difference checks of its gradient use); its fitted constants are float32 either way.
 
 The geometry backend is MJX (``backend="mjx"``, the reference) or the fitted fast path (``backend="fast"``); the
