@@ -13,8 +13,12 @@ ARM_KINDS = ("simple", "musculoskeletal")
 BACKENDS = ("mjx", "fast")
 
 
-def make_arm(kind: str = "musculoskeletal", backend: str = "fast", config=None):
-    """Build an arm. kind: 'simple' or 'musculoskeletal'; backend (musculoskeletal only): 'mjx' or 'fast'."""
+def make_arm(kind: str = "musculoskeletal", backend: str = "fast", config=None, smooth: bool = False):
+    """Build an arm. kind: 'simple' or 'musculoskeletal'; backend (musculoskeletal only): 'mjx' or 'fast';
+    smooth (musculoskeletal only): the C-infinity formulation to differentiate through (sets
+    ``MusculoskeletalArmConfig.smooth``)."""
+    if smooth is not False and kind != "musculoskeletal":
+        raise ConfigError(f"smooth = {smooth!r}: only the musculoskeletal arm has a smooth formulation, not {kind!r}")
     if kind == "simple":
         from jaxarm.config.arm import SimpleArmConfig
         return SimpleArm(config or SimpleArmConfig())
@@ -22,6 +26,11 @@ def make_arm(kind: str = "musculoskeletal", backend: str = "fast", config=None):
         if backend not in BACKENDS:
             raise ConfigError(f"backend = {backend!r}: must be one of {', '.join(map(repr, BACKENDS))}")
         from jaxarm.arm.musculoskeletal import make_musculoskeletal_arm
+        if smooth:
+            import dataclasses
+
+            from jaxarm.config.arm import MusculoskeletalArmConfig
+            config = dataclasses.replace(config or MusculoskeletalArmConfig(), smooth=True)
         return make_musculoskeletal_arm(backend, config)
     raise ConfigError(f"kind = {kind!r}: must be one of {', '.join(map(repr, ARM_KINDS))}")
 

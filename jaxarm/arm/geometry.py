@@ -173,7 +173,7 @@ class FastGeometry:
         self.mass_coef = jnp.asarray(fit["mass_coef"], jnp.float32)       # (5, 3): M11, M12, M22
 
     def _monomials(self, q):
-        x = (jnp.asarray(q, jnp.float32) - self.q_center) / self.q_halfwidth
+        x = (jnp.asarray(q, float) - self.q_center) / self.q_halfwidth
         powers = jnp.cumprod(jnp.concatenate([jnp.ones((1, 2), x.dtype), jnp.tile(x, (self.degree, 1))]), axis=0)
         if self.separable:
             return jnp.concatenate([powers[:, 0], powers[1:, 1]])
@@ -188,8 +188,9 @@ class FastGeometry:
         return jnp.array([[m11, m12], [m12, m22]])
 
     def __call__(self, q, qd) -> ArmGeometry:
-        q = jnp.asarray(q, jnp.float32)
-        qd = jnp.asarray(qd, jnp.float32)
+        # JAX's default float type: float32, or float64 when x64 is on (for finite-difference checks).
+        q = jnp.asarray(q, float)
+        qd = jnp.asarray(qd, float)
         m = self.n_muscles
         values = self._monomials(q) @ self.all_coef
         lengths, moment_arms = values[:m], -jnp.stack([values[m:2 * m], values[2 * m:]], axis=-1)

@@ -20,6 +20,14 @@ The tendon force along the muscle-tendon path is ``f_t * F_max`` (N): that is wh
 Numerics: the fibre-length ODE is stiff for short-tendon muscles (PECM1's tendon is 2.8 mm, local rate ~100 l_opt/l_s
 per s), so :func:`step` uses a diagonal linearly-implicit Euler step ``lm += dt f / (1 - dt min(df/dlm, 0))`` with
 ``df/dlm`` from one forward-mode derivative (muscles are independent, so the Jacobian is diagonal).
+
+Smooth formulation (``smooth``: names from ``jaxarm.config.arm.SMOOTH_KINKS``): the model above is only piecewise smooth (a slack
+tendon pulls with zero force, forces are clamped at zero, the force-velocity relation switches branch at isometric,
+the activation rate switches at u = a, ...). Each crossing of such a kink bends the map from excitations to the
+path, and over a 1 s reach the map is too rough for a finite-difference-checked gradient
+(``experiments/arm_gradients.py``). With a kink named in ``smooth`` it is replaced by a C-infinity version that
+differs from it only within a stated width (the ``W_*`` constants, each in its quantity's units): clamps at zero
+by ``w softplus(x / w)``, switches by a logistic blend ``sigmoid(x / w)``.
 """
 from __future__ import annotations
 
@@ -38,6 +46,25 @@ _KV, _SLOPE_K, _FMAX = 0.15, 0.13, 1.4
 # Pennation is capped below 90 deg so that cos(alpha) stays positive (OpenSim switches to a rigid-tendon
 # approximation at exactly 90 deg; the cap keeps the state in the compliant-tendon regime).
 _MAX_SIN_PENNATION = 0.99
+
+# Widths of the softened kinks, each in its quantity's units. Each is small against the quantity's working range
+# (strains of 1-3 %, forces of 0.1-1 F_max, excitations 0-0.6) so that the smooth arm stays within the
+# integration error of the piecewise one, and wide enough to be resolved by float32 arithmetic.
+#: Tendon strain (dimensionless) over which a slack tendon takes up force: softplus of the strain.
+W_STRAIN = 1e-4
+#: Normalised force (of F_max) of the clamps at zero of the passive, active and velocity-dependent forces.
+W_FORCE = 1e-4
+#: Normalised force over which the force-velocity relation blends its shortening and lengthening branches
+#: (they meet at v = 0 with slopes that differ by up to 2.6x).
+W_FORCE_VELOCITY = 1e-2
+#: Excitation minus activation (dimensionless) over which the activation rate blends deactivation into activation.
+W_ACTIVATION = 1e-2
+#: Rate (1/s) of the soft ``min(df/dlm, 0)`` of the linearly-implicit fibre step (stiff muscles have |df| ~ 1e4).
+W_IMPLICIT_RATE = 10.0
+#: Sine of the pennation angle over which the pennation cap bends in.
+W_SIN_PENNATION = 5e-3
+#: Fibre length, as a fraction of the optimal fibre length, over which the fibre-length clip bends in.
+W_FIBER_CLIP = 1e-3
 
 
 class Spline(NamedTuple):
@@ -165,17 +192,48 @@ def make_muscle_params(table: list[dict], *, time_scale_s: float, activation1: f
 
 
 # --------------------------------------------------------------------------------------------------------------
+# Smooth replacements of the kinks
+
+
+def soft_max0(x, width):
+    """``max(x, 0)`` softened over ``width`` (x's units): ``width softplus(x / width)``, C-infinity, above ``max(x, 0)``
+    by at most ``width ln 2`` (at x = 0) and by less than ``width exp(-|x| / width)`` elsewhere."""
+    return width * jax.nn.softplus(x / width)
+
+
+def soft_min(x, cap, width):
+    """``min(x, cap)`` softened over ``width``."""
+    return cap - soft_max0(cap - x, width)
+
+
+def soft_clip(x, lo, hi, width):
+    """``clip(x, lo, hi)`` softened over ``width`` at each end (for hi - lo much wider than width)."""
+    return soft_min(lo + soft_max0(x - lo, width), hi, width)
+
+
+# --------------------------------------------------------------------------------------------------------------
 # Dynamics
 
 
-def activation_rate(p: MuscleParams, u, a):
+def _rate_constant(p: MuscleParams, u, a, smooth=()):
+    """(A1 u + A2) while activating (u >= a), A2 while deactivating; blended over ``W_ACTIVATION`` if smooth. The
+    rate multiplies (u - a), so da/dt is continuous either way; only its slope jumps at u = a."""
+    if "activation" in smooth:
+        return p.activation1 * u * jax.nn.sigmoid((u - a) / W_ACTIVATION) + p.activation2
+    return jnp.where(u >= a, p.activation1 * u + p.activation2, p.activation2)
+
+
+def activation_rate(p: MuscleParams, u, a, smooth=()):
     """da/dt (1/s) of the paper's excitation-activation ODE (§2.1)."""
-    rate = jnp.where(u >= a, p.activation1 * u + p.activation2, p.activation2)
-    return (u - a) * rate / p.time_scale_s
+    return (u - a) * _rate_constant(p, u, a, smooth) / p.time_scale_s
 
 
-def cos_pennation(p: MuscleParams, lm):
-    sin_a = jnp.minimum(jnp.sin(p.pennation_rad) * p.optimal_fiber_length_m / lm, _MAX_SIN_PENNATION)
+def cos_pennation(p: MuscleParams, lm, smooth=()):
+    sin_a = jnp.sin(p.pennation_rad) * p.optimal_fiber_length_m / lm
+    if "pennation_cap" in smooth:
+        sin_a = soft_min(sin_a, _MAX_SIN_PENNATION, W_SIN_PENNATION)
+    else:
+        sin_a = jnp.minimum(sin_a, _MAX_SIN_PENNATION)
     return jnp.sqrt(1.0 - sin_a**2)
 
 
@@ -191,78 +249,107 @@ def max_fiber_length(p: MuscleParams, lmt):
     return jnp.maximum(jnp.sqrt(lmt**2 + w**2), min_fiber_length(p) * 1.001)
 
 
-def _normalised_forces(p: MuscleParams, lm, lmt):
+def _tendon_force_norm(p: MuscleParams, strain, smooth=()):
+    """Normalised tendon force at ``strain``: zero when slack. The stored curve leaves zero at strain 0 with slope
+    ~4 (per unit strain), so the slack switch is a kink; smooth, the curve is read at the strain's softplus."""
+    if "tendon_slack" in smooth:
+        return eval_spline(p.tendon_fl, soft_max0(strain, W_STRAIN))
+    return jnp.where(strain >= 0.0, jnp.maximum(eval_spline(p.tendon_fl, jnp.maximum(strain, 0.0)), 0.0), 0.0)
+
+
+def _max0(x, smooth, width):
+    return soft_max0(x, width) if "force_clamps" in smooth else jnp.maximum(x, 0.0)
+
+
+def _normalised_forces(p: MuscleParams, lm, lmt, smooth=()):
     # Divisions by per-muscle constants are written as products with their reciprocals: one divide per muscle,
     # not one per muscle and arm (XLA keeps a true division by a non-power-of-two constant).
     ln = lm * (1.0 / p.optimal_fiber_length_m)
-    ca = cos_pennation(p, lm)
+    ca = cos_pennation(p, lm, smooth)
     lt = lmt - lm * ca
     strain = lt * (1.0 / p.tendon_slack_length_m) - 1.0
-    ft = jnp.where(strain >= 0.0, jnp.maximum(eval_spline(p.tendon_fl, jnp.maximum(strain, 0.0)), 0.0), 0.0)
-    # The natural spline through the stored knots dips ~1e-6 below zero where the curve is flat at zero; a negative
+    ft = _tendon_force_norm(p, strain, smooth)
+    # The natural spline through the stored knots dips up to ~2e-4 below zero where the curve is flat at zero; a negative
     # passive force would hold a slack fibre stretched, so it is clipped.
-    fp = jnp.maximum(eval_spline(p.passive_fl, ln), 0.0)
-    fa = jnp.maximum(eval_spline(p.active_fl, ln), 0.0)
+    fp = _max0(eval_spline(p.passive_fl, ln), smooth, W_FORCE)
+    fa = _max0(eval_spline(p.active_fl, ln), smooth, W_FORCE)
     return ca, ft, fp, fa
 
 
-def _inverse_force_velocity(a, fa, fv, d):
-    """Normalised fibre velocity from Schutte's inverse force-velocity relation with damping ``d``."""
+def _inverse_force_velocity(a, fa, fv, d, smooth=()):
+    """Normalised fibre velocity from Schutte's inverse force-velocity relation with damping ``d``.
+
+    The shortening and lengthening branches meet at ``fv = a fa`` (v = 0) with different slopes. Smooth, they are
+    blended by a logistic step of width ``W_FORCE_VELOCITY``; each branch continued past the meeting point keeps a
+    non-negative discriminant (it is a sum of squares for fv >= 0), and a tiny offset keeps sqrt's derivative
+    finite where it touches zero.
+    """
     afa = a * fa
     inv_d = 1.0 / d
     # Shortening branch (f_v < a f_a).
     c1 = _KV * (fv - afa) * inv_d
     b1 = -(fv + _KV * afa + _KV * d) * inv_d
-    v_short = (-b1 - jnp.sqrt(jnp.maximum(b1 * b1 - 4.0 * c1, 0.0))) / 2.0
+    sqrt_offset = 1e-12 if "force_velocity" in smooth else 0.0
+    v_short = (-b1 - jnp.sqrt(jnp.maximum(b1 * b1 - 4.0 * c1, 0.0) + sqrt_offset)) / 2.0
     # Lengthening branch.
     c2 = -(_SLOPE_K * _KV / (_KV + 1.0)) * inv_d * (fv - afa)
     b2 = -((fv - _FMAX * afa) * inv_d - _SLOPE_K * _KV / (_KV + 1.0))
-    v_long = (-b2 + jnp.sqrt(jnp.maximum(b2 * b2 - 4.0 * c2, 0.0))) / 2.0
-    return jnp.where(fv < -d, fv * inv_d, jnp.where(fv < afa, v_short, v_long))
+    v_long = (-b2 + jnp.sqrt(jnp.maximum(b2 * b2 - 4.0 * c2, 0.0) + sqrt_offset)) / 2.0
+    if "force_velocity" in smooth:
+        v = v_short + jax.nn.sigmoid((fv - afa) / W_FORCE_VELOCITY) * (v_long - v_short)
+    else:
+        v = jnp.where(fv < afa, v_short, v_long)
+    return jnp.where(fv < -d, fv * inv_d, v)
 
 
-def fiber_velocity(p: MuscleParams, a, lm, lmt):
+def fiber_velocity(p: MuscleParams, a, lm, lmt, smooth=()):
     """dlm/dt (m/s) from the force balance between fibre and tendon."""
-    ca, ft, fp, fa = _normalised_forces(p, lm, lmt)
-    fv = jnp.maximum(ft / ca - fp, 0.0)
-    return _inverse_force_velocity(a, fa, fv, p.damping) * (p.optimal_fiber_length_m / p.time_scale_s)
+    ca, ft, fp, fa = _normalised_forces(p, lm, lmt, smooth)
+    fv = _max0(ft / ca - fp, smooth, W_FORCE)
+    return _inverse_force_velocity(a, fa, fv, p.damping, smooth) * (p.optimal_fiber_length_m / p.time_scale_s)
 
 
-def tendon_force(p: MuscleParams, lm, lmt):
+def tendon_force(p: MuscleParams, lm, lmt, smooth=()):
     """Force along each muscle-tendon path (N): the tendon's force at fibre length lm (m) and path length lmt (m)."""
-    lt = lmt - lm * cos_pennation(p, lm)
+    lt = lmt - lm * cos_pennation(p, lm, smooth)
     strain = lt * (1.0 / p.tendon_slack_length_m) - 1.0
-    ft = jnp.where(strain >= 0.0, jnp.maximum(eval_spline(p.tendon_fl, jnp.maximum(strain, 0.0)), 0.0), 0.0)
-    return ft * p.max_force_n
+    return _tendon_force_norm(p, strain, smooth) * p.max_force_n
 
 
-def forces(p: MuscleParams, state: MuscleState, lmt) -> MuscleForces:
+def forces(p: MuscleParams, state: MuscleState, lmt, smooth=()) -> MuscleForces:
     """Tendon, active and passive forces (N) along each path, and the fibre velocity (m/s)."""
     lm = state.fiber_length_m
-    ca, ft, fp, _ = _normalised_forces(p, lm, lmt)
+    ca, ft, fp, _ = _normalised_forces(p, lm, lmt, smooth)
     tendon = ft * p.max_force_n
     passive = jnp.minimum(fp * ca * p.max_force_n, tendon)
-    return MuscleForces(tendon, tendon - passive, passive, fiber_velocity(p, state.activation, lm, lmt))
+    return MuscleForces(tendon, tendon - passive, passive, fiber_velocity(p, state.activation, lm, lmt, smooth))
 
 
-def step(p: MuscleParams, state: MuscleState, u, lmt, dt_s: float) -> MuscleState:
+def step(p: MuscleParams, state: MuscleState, u, lmt, dt_s: float, smooth=()) -> MuscleState:
     """Advance activation and fibre length by ``dt_s`` at fixed muscle-tendon length ``lmt`` (m).
 
     Activation: exact exponential step of the linear ODE with the rate frozen over the step (stable for any dt).
-    Fibre length: diagonal linearly-implicit Euler (see module docstring).
+    Fibre length: diagonal linearly-implicit Euler (see module docstring). ``smooth``: names of the
+    kinks to soften (see the module docstring).
     """
     a = state.activation
-    rate = jnp.where(u >= a, p.activation1 * u + p.activation2, p.activation2) * (1.0 / p.time_scale_s)
+    rate = _rate_constant(p, u, a, smooth) * (1.0 / p.time_scale_s)
     a_new = u + (a - u) * jnp.exp(-rate * dt_s)
 
     lm = state.fiber_length_m
-    f, df = jax.jvp(lambda x: fiber_velocity(p, a_new, x, lmt), (lm,), (jnp.ones_like(lm),))
-    lm_new = lm + dt_s * f / (1.0 - dt_s * jnp.minimum(df, 0.0))
-    lm_new = jnp.clip(lm_new, min_fiber_length(p), max_fiber_length(p, lmt))
+    f, df = jax.jvp(lambda x: fiber_velocity(p, a_new, x, lmt, smooth), (lm,), (jnp.ones_like(lm),))
+    stiff = -soft_max0(-df, W_IMPLICIT_RATE) if "implicit_step" in smooth else jnp.minimum(df, 0.0)
+    lm_new = lm + dt_s * f / (1.0 - dt_s * stiff)
+    lo, hi = min_fiber_length(p), max_fiber_length(p, lmt)
+    if "fiber_clip" in smooth:
+        lm_new = soft_clip(lm_new, lo, hi, W_FIBER_CLIP * p.optimal_fiber_length_m)
+    else:
+        lm_new = jnp.clip(lm_new, lo, hi)
+    # a_new is a convex combination of a and u, so in [0, 1]; the clip only catches rounding.
     return MuscleState(jnp.clip(a_new, 0.0, 1.0), lm_new)
 
 
-def equilibrium_fiber_length(p: MuscleParams, a, lmt, iterations: int = 60):
+def equilibrium_fiber_length(p: MuscleParams, a, lmt, iterations: int = 60, smooth=()):
     """Fibre length (m) at which fibre and tendon forces balance with zero fibre velocity, by bisection.
 
     The imbalance ``f_t / cos(alpha) - f_p - a f_a`` falls monotonically as the fibre lengthens (the tendon
@@ -273,7 +360,7 @@ def equilibrium_fiber_length(p: MuscleParams, a, lmt, iterations: int = 60):
     hi = max_fiber_length(p, lmt)
 
     def imbalance(lm):
-        ca, ft, fp, fa = _normalised_forces(p, lm, lmt)
+        ca, ft, fp, fa = _normalised_forces(p, lm, lmt, smooth)
         return ft / ca - fp - a * fa
 
     def body(_, bounds):

@@ -13,6 +13,13 @@ One step advances ``config.dt_s`` (1 ms by default) of simulated time (SI units 
 4. semi-implicit Euler on the skeleton with the mass matrix and velocity-product torques of the geometry backend,
    the limit damping taken implicitly.
 
+``config.smooth`` replaces every kink of the muscles and of the joint limits by a C-infinity version of a stated
+width (``jaxarm.config.arm.SMOOTH_KINKS``; the widths are
+:mod:`jaxarm.arm.muscle`'s ``W_*`` and :data:`W_JOINT_LIMIT_RAD`): the arm to differentiate through.
+
+The arm computes in JAX's default float type (float32; float64 under ``jax.enable_x64``, which the
+finite-difference checks of its gradient use); its fitted constants are float32 either way.
+
 The geometry backend is MJX (``backend="mjx"``, the reference) or the fitted fast path (``backend="fast"``); the
 muscle, the limits and the integrator are this one module, shared by both.
 """
@@ -27,7 +34,7 @@ import numpy as np
 from jaxarm.arm import muscle as mus
 from jaxarm.arm.base import ArmObs, MuscleObs, hand_position
 from jaxarm.arm.geometry import FastGeometry, MjxGeometry, c_geometry, load_mjmodel
-from jaxarm.config.arm import MusculoskeletalArmConfig
+from jaxarm.config.arm import SMOOTH_KINKS, MusculoskeletalArmConfig
 
 #: Muscles driven by each excitation group (spec §8, MuscleExcitationSetter). Others are passive.
 GROUP_MUSCLES = (
@@ -44,6 +51,9 @@ PROPRIO_MUSCLES = ("DELT3", "PECM1", "TRIlong", "BIClong")
 #: vectorises the muscle's element-wise loops only when the muscle axis fills whole registers, and the 22
 #: muscles padded to 24 ran the muscle step 2.5x faster per muscle (``benchmarks/arm.py``, docs in README).
 MUSCLE_LANES = 8
+
+#: Joint-angle overshoot (rad) over which the smooth limit spring takes up and the limit damping switches on.
+W_JOINT_LIMIT_RAD = 1e-3
 
 
 class MusculoskeletalArmState(NamedTuple):
@@ -65,6 +75,7 @@ class MusculoskeletalArm:
         self.config = config = config or MusculoskeletalArmConfig()
         self.backend = backend
         self.dt_s = config.dt_s
+        self.smooth = SMOOTH_KINKS if config.smooth is True else tuple(config.smooth or ())
         self.geometry = MjxGeometry() if backend == "mjx" else FastGeometry()
         table = mus.load_muscle_table()
         self.muscle_names = tuple(m["name"] for m in table)
@@ -106,20 +117,22 @@ class MusculoskeletalArm:
     # -- geometry queries ------------------------------------------------------------------------------------
     def mtu_lengths(self, q):
         """(22,) muscle-tendon lengths, m, at joint angles q (rad)."""
-        return self.geometry(jnp.asarray(q, jnp.float32), jnp.zeros(2, jnp.float32)).mtu_length_m
+        q = jnp.asarray(q, float)
+        return self.geometry(q, jnp.zeros(2, q.dtype)).mtu_length_m
 
     def moment_arms(self, q):
         """(22, 2) moment arms, m (positive = tension flexes that joint)."""
-        return self.geometry(jnp.asarray(q, jnp.float32), jnp.zeros(2, jnp.float32)).moment_arm_m
+        q = jnp.asarray(q, float)
+        return self.geometry(q, jnp.zeros(2, q.dtype)).moment_arm_m
 
     # -- dynamics ----------------------------------------------------------------------------------------------
     def init(self, q0=None) -> MusculoskeletalArmState:
         """At rest at q0 (rad; default the start posture), unexcited muscles in force equilibrium."""
-        q0 = jnp.asarray(self.config.start_posture_rad if q0 is None else q0, jnp.float32)
+        q0 = jnp.asarray(self.config.start_posture_rad if q0 is None else q0, float)
         lmt = self._lanes(self.mtu_lengths(q0))
         activation = jnp.zeros_like(lmt)
-        lm = mus.equilibrium_fiber_length(self.lane_params, activation, lmt)
-        return MusculoskeletalArmState(q0, jnp.zeros(2, jnp.float32), mus.MuscleState(activation, lm))
+        lm = mus.equilibrium_fiber_length(self.lane_params, activation, lmt, smooth=self.smooth)
+        return MusculoskeletalArmState(q0, jnp.zeros(2, q0.dtype), mus.MuscleState(activation, lm))
 
     def _lanes(self, per_muscle):
         """(22, ...) -> (n_lanes, ...): padding lanes repeat muscle 0."""
@@ -131,7 +144,7 @@ class MusculoskeletalArm:
     def excitations(self, u):
         """(n_lanes,) muscle excitations (the 22 muscles, then zeros for the padding lanes) from the 4 group
         excitations u in [0, 1] (values outside are clipped)."""
-        return self.group_drive @ jnp.clip(jnp.asarray(u, jnp.float32), 0.0, 1.0)
+        return self.group_drive @ jnp.clip(jnp.asarray(u, float), 0.0, 1.0)
 
     def step(self, state: MusculoskeletalArmState, u) -> MusculoskeletalArmState:
         """u: (4,) excitations (sh-ext, sh-flex, el-ext, el-flex) in [0, 1]. Advances ``dt_s`` (1 ms default)."""
@@ -148,6 +161,10 @@ class MusculoskeletalArm:
         """Penalty torque (N m) beyond the joint range: spring on the overshoot; the damping inside the limit zone is returned
         separately as a coefficient (N m s/rad) so the integrator can take it implicitly."""
         below, above = self._q_min - q, q - self._q_max
+        if "joint_limits" in self.smooth:
+            spring = self._k_limit * (mus.soft_max0(below, W_JOINT_LIMIT_RAD) - mus.soft_max0(above, W_JOINT_LIMIT_RAD))
+            zone = jax.nn.sigmoid(below / W_JOINT_LIMIT_RAD) + jax.nn.sigmoid(above / W_JOINT_LIMIT_RAD)
+            return spring, self._b_limit * zone
         spring = self._k_limit * (jnp.maximum(below, 0.0) - jnp.maximum(above, 0.0))
         return spring, jnp.where((below > 0) | (above > 0), self._b_limit, 0.0)
 
@@ -160,10 +177,10 @@ class MusculoskeletalArm:
         def body(carry, i):
             ms, total = carry
             lmt = lmt0 + lmt_rate * ((i + 1.0) * hk)
-            ms = mus.step(self.lane_params, ms, e, lmt, hk)
-            return (ms, total + mus.tendon_force(self.lane_params, ms.fiber_length_m, lmt)), None
+            ms = mus.step(self.lane_params, ms, e, lmt, hk, self.smooth)
+            return (ms, total + mus.tendon_force(self.lane_params, ms.fiber_length_m, lmt, self.smooth)), None
 
-        (muscle, total), _ = jax.lax.scan(body, (muscle, jnp.zeros_like(lmt0)), jnp.arange(k, dtype=jnp.float32))
+        (muscle, total), _ = jax.lax.scan(body, (muscle, jnp.zeros_like(lmt0)), jnp.arange(k, dtype=lmt0.dtype))
         return muscle, total * (1.0 / k)
 
     def _substep(self, s: MusculoskeletalArmState, e, h) -> MusculoskeletalArmState:
@@ -182,7 +199,7 @@ class MusculoskeletalArm:
         lmt = self.mtu_lengths(state.q)
         m = self.n_muscles
         real = mus.MuscleState(state.muscle.activation[:m], state.muscle.fiber_length_m[:m])
-        f = mus.forces(self.params, real, lmt)
+        f = mus.forces(self.params, real, lmt, self.smooth)
         lm = real.fiber_length_m
         muscles = MuscleObs(activation=real.activation, active_force_n=f.active_force_n,
                             passive_force_n=f.passive_force_n, force_n=f.tendon_force_n,

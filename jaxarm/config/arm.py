@@ -13,6 +13,10 @@ SHOULDER_RANGE_DEG = (-10.0, 110.0)
 ELBOW_RANGE_DEG = (0.0, 140.0)
 #: Segment lengths of the authors' planar forward kinematics, m (spec §3, msarm.hoc L406-411).
 ARM_SEGMENTS_M = (0.4634 - 0.173, 0.7169 - 0.4634)
+#: The kinks of the musculoskeletal arm that ``MusculoskeletalArmConfig.smooth`` can soften, by name: the muscle's
+#: (``jaxarm.arm.muscle``) and the joint-limit penalty's.
+SMOOTH_KINKS = ("tendon_slack", "force_clamps", "force_velocity", "activation", "implicit_step", "pennation_cap",
+                "fiber_clip", "joint_limits")
 
 
 class _JointRanges:
@@ -96,6 +100,14 @@ class MusculoskeletalArmConfig(_JointRanges):
             then carries no muscle force at the start posture and holds it. False keeps the stored parameters (the
             arm then drifts: TRIlong pulls with hundreds of newtons).
         start_posture_rad: posture used by the relaxation rule and the default ``init``, rad.
+        smooth: False (the model as published, piecewise smooth) or True: every kink (slack tendons, the clamps at
+            zero force, the force-velocity branch switch, the activation-rate switch, the implicit step's
+            ``min(df, 0)``, the pennation cap, the fibre-length clip, the joint-limit penalty) replaced by a
+            C-infinity version of a stated width (``jaxarm.arm.muscle.W_*``,
+            ``jaxarm.arm.musculoskeletal.W_JOINT_LIMIT_RAD``), so that gradients through a whole reach match finite
+            differences; the path stays within the default model's integration error (``docs/gradients.md``). A
+            tuple of names from ``SMOOTH_KINKS`` softens only those (to find which kink
+            matters).
     """
 
     dt_s: float = 0.001
@@ -112,6 +124,7 @@ class MusculoskeletalArmConfig(_JointRanges):
     relax_at_start: bool = True
     start_posture_rad: tuple[float, float] = START_POSTURE_RAD
     segments_m: tuple[float, float] = ARM_SEGMENTS_M
+    smooth: bool | tuple[str, ...] = False
 
     def __post_init__(self):
         check_range(self, "dt_s", 1e-5, 0.005)
@@ -131,6 +144,9 @@ class MusculoskeletalArmConfig(_JointRanges):
         check_interval(self, "elbow_range_deg", -180.0, 180.0)
         if not isinstance(self.relax_at_start, bool):
             raise ConfigError(f"MusculoskeletalArmConfig.relax_at_start = {self.relax_at_start!r}: must be True or False")
+        if not (isinstance(self.smooth, bool) or (isinstance(self.smooth, tuple) and set(self.smooth) <= set(SMOOTH_KINKS))):
+            raise ConfigError(f"MusculoskeletalArmConfig.smooth = {self.smooth!r}: must be True, False or a tuple of "
+                              f"names from {', '.join(SMOOTH_KINKS)}")
         lo, hi = self.q_min_rad, self.q_max_rad
         q0 = self.start_posture_rad
         if len(q0) != 2 or not all(lo[i] <= q0[i] <= hi[i] for i in range(2)):

@@ -1,0 +1,1 @@
+"""Control references computed through the differentiable arm (optimal reaches)."""
