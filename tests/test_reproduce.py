@@ -281,7 +281,6 @@ def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
 
 
 
-@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_musculoskeletal_reproduce_with_the_shipped_preset_then_retest(tmp_path):
     """The headline path at tiny size: the shipped musculoskeletal preset, both modes, one target, then `jaxarm
     test` re-tests the trained networks identically."""
