@@ -110,6 +110,8 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
 
 
 def start_from_arguments(args) -> None:
+    """:func:`start` from the parsed options of :func:`add_arguments` (``--devices``, ``--coordinator``,
+    ``--num-processes``, ``--process-id``)."""
     start(args.devices, args.coordinator, args.num_processes, args.process_id)
 
 

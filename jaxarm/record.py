@@ -113,11 +113,13 @@ class Recording(NamedTuple):
 
 
 def empty(capacity: int) -> SpikeBuffer:
+    """A spike buffer of ``capacity`` slots (8 bytes each), nothing recorded."""
     zeros = jnp.zeros((capacity,), jnp.uint32)
     return SpikeBuffer(word=zeros, bits=zeros, used=jnp.zeros((), jnp.int32), count=jnp.zeros((), jnp.int32))
 
 
 def words_per_interval(steps: int, n_all: int) -> int:
+    """32-bit words that hold one interval's spike bits: ``steps`` network steps x ``n_all`` cells, rounded up."""
     return -(-steps * n_all // WORD_BITS)
 
 
@@ -138,12 +140,15 @@ def push(buf: SpikeBuffer, spikes, interval) -> SpikeBuffer:
 
 
 def check_window(n_all: int, steps_per_interval: int, intervals: int, what: str) -> None:
+    """Raise :class:`ConfigError` (naming ``what``) unless a window of ``intervals`` intervals of
+    ``steps_per_interval`` steps over ``n_all`` cells can be addressed by a uint32 word code."""
     if intervals * words_per_interval(steps_per_interval, n_all) >= MAX_CODES:
         raise ConfigError(f"{what}: {intervals} intervals x {steps_per_interval} steps x {n_all} cells do not fit "
                           "a uint32 word code; record a shorter window")
 
 
 def batch_bytes(n_networks: int, capacity: int) -> int:
+    """Bytes of the spike buffers of ``n_networks`` networks of ``capacity`` slots each."""
     return n_networks * capacity * BYTES_PER_SLOT
 
 

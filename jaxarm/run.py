@@ -56,6 +56,7 @@ def network_keys(seeds) -> np.ndarray:
 
 
 def stack_rows(rows: list[MetaParams]) -> MetaParams:
+    """One MetaParams whose every field is the rows' values stacked (float32, leading axis = len(rows))."""
     return MetaParams(**{n: np.stack([np.asarray(getattr(m, n), np.float32) for m in rows]) for n in NAMES})
 
 

@@ -90,12 +90,18 @@ def jerk(xy, dt) -> np.ndarray:
 
 
 def velocity(xy, dt) -> np.ndarray:
-    """Velocity x'(t_i) at every sample, (..., T, 2) float64 in m/s, by 5-point stencils (4th-order accurate)."""
+    """Velocity x'(t_i) at every sample, (..., T, 2) float64 in m/s, by 5-point stencils (4th-order accurate).
+
+    xy: (..., T, 2) positions in m sampled every dt s (T >= 5).
+    """
     return _derivative(xy, dt, 1)
 
 
 def jerk_magnitude(xy, dt) -> np.ndarray:
-    """|x'''(t_i)|, (..., T) float64 in m/s³ (the quantity of the paper's Fig. 7A box plots)."""
+    """|x'''(t_i)|, (..., T) float64 in m/s³ (the quantity of the paper's Fig. 7A box plots).
+
+    xy: (..., T, 2) positions in m sampled every dt s (T >= 5).
+    """
     return np.linalg.norm(jerk(xy, dt), axis=-1)
 
 

@@ -45,7 +45,7 @@ class ReachMetrics(NamedTuple):
 
 
 def interval_speeds(xy, dt):
-    """(..., T-1) speeds of the intervals between consecutive samples, m/s. xy: (..., T, 2) m."""
+    """(..., T-1) speeds of the intervals between consecutive samples, m/s. xy: (..., T, 2) m sampled every dt s."""
     seg = jnp.diff(jnp.asarray(xy), axis=-2)
     return jnp.sqrt(jnp.sum(seg * seg, axis=-1)) / dt
 

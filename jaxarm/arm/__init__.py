@@ -15,8 +15,9 @@ BACKENDS = ("mjx", "fast")
 
 def make_arm(kind: str = "musculoskeletal", backend: str = "fast", config=None, smooth: bool = False):
     """Build an arm. kind: 'simple' or 'musculoskeletal'; backend (musculoskeletal only): 'mjx' or 'fast';
+    config: the arm's ``SimpleArmConfig`` / ``MusculoskeletalArmConfig`` (SI units; default: the paper's arm);
     smooth (musculoskeletal only): the C-infinity formulation to differentiate through (sets
-    ``MusculoskeletalArmConfig.smooth``)."""
+    ``MusculoskeletalArmConfig.smooth``; ``docs/gradients.md``)."""
     if smooth is not False and kind != "musculoskeletal":
         raise ConfigError(f"smooth = {smooth!r}: only the musculoskeletal arm has a smooth formulation, not {kind!r}")
     if kind == "simple":

@@ -154,7 +154,9 @@ def make_optimal_reach(config: OptimalReachConfig, arm=None):
 
 
 def optimal_reach(target_xy_m, config: OptimalReachConfig | None = None, arm=None) -> OptimalReach:
-    """The optimised reach to ``target_xy_m`` (2,) m from the arm's start posture (see module docstring)."""
+    """The optimised reach to ``target_xy_m`` (2,) m from the arm's start posture (see module docstring).
+    ``config``: the problem (default :class:`OptimalReachConfig`); ``arm``: default the smooth fast
+    musculoskeletal arm."""
     config = config or OptimalReachConfig()
     if arm is None:
         from jaxarm.arm import make_arm
