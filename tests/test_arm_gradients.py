@@ -90,3 +90,36 @@ def test_smooth_option_validation():
         MusculoskeletalArmConfig(smooth=("slack",))
     with pytest.raises(ConfigError, match="smooth"):
         make_arm("simple", smooth=True)
+
+
+@pytest.mark.slow  # MJX compiles for ~1 min
+def test_smooth_arm_passes_the_default_arms_backend_and_limit_checks():
+    """The checks the published arm passes (tests/test_musculoskeletal_arm.py), on the smooth arm: within 1 deg of
+    MJX (the reference geometry, default muscles) over 1 s on four smooth random inputs, and full excitation of any
+    group combination stops the joints at most 3.6 deg (shoulder) / 2.1 deg (elbow) past their ranges."""
+    import itertools
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent.parent / "experiments"))
+    from arm_convergence import paths
+
+    smooth = make_arm("musculoskeletal", smooth=True)
+    us = np.stack([smooth_random_excitations(seed) for seed in range(7, 11)])
+    q0 = np.array([0.62, 1.53])
+    diff = np.degrees(np.abs(paths(smooth, q0, us) - paths(make_arm("musculoskeletal", backend="mjx"), q0, us)))
+    assert diff.max() < 1.0, diff.max()
+
+    def hold(u):
+        def body(s, e):
+            s = smooth.step(s, e)
+            return s, s.q
+        return jax.lax.scan(body, smooth.init(), jnp.tile(u, (1000, 1)))[1]
+    roll = jax.jit(hold)
+    lo, hi = np.radians([-10, 0]), np.radians([110, 140])
+    worst = np.full(2, -np.inf)
+    for r in range(1, 5):
+        for groups in itertools.combinations(range(4), r):
+            q = np.asarray(roll(jnp.zeros(4).at[jnp.array(groups)].set(1.0)))
+            worst = np.maximum(worst, np.maximum(lo - q.min(0), q.max(0) - hi))
+    assert worst[0] < np.radians(3.6) and worst[1] < np.radians(2.1), np.degrees(worst)
