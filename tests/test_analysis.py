@@ -519,6 +519,9 @@ def test_beside_paper_gives_each_measure_with_the_papers_value_and_ratio(tmp_pat
     assert row["speed_after_m_s"]["mean"] == pytest.approx((0.3 * 13 / 63 + 0.3) / 2, rel=1e-2)   # still after 0.5 s
     assert row["time_inside_s"]["mean"] == pytest.approx((640 + 270) / 2, abs=10)   # ms: 64 and 27 samples inside
     assert row["jerk_trained"]["paper"] == 0.76 and row["jerk_ratio"]["paper"] == pytest.approx(0.76 / 1.72)
+    assert row["jerk_trained"]["ratio"] is None and row["jerk_naive"]["ratio"] is None   # incomparable absolutes
+    jr = row["jerk_ratio"]
+    assert jr["ratio"] == pytest.approx(jr["mean"] / (0.76 / 1.72), rel=1e-2)
     _fake_run(tmp_path / "simple", "simple", "left", [stays], [never], [True])
     simple = mod.beside_paper(mod.target_stats(tmp_path / "simple"))
     assert simple["distance_after_m"]["paper"] is None and simple["distance_after_m"]["ratio"] is None

@@ -129,10 +129,12 @@ def beside_paper(stats: dict) -> dict:
             paper, paper_sd = p if p else (None, None)
         mean = ours["mean"]
         finite = mean is not None and np.isfinite(mean)
+        # The paper's absolute jerk cannot come from its formula (docstring): shown beside ours, never divided.
+        comparable = key not in ("jerk_trained", "jerk_naive")
         out[key] = {"mean": round(float(mean), 4) if finite else None,
                     "sd": round(float(ours["sd"]), 4) if np.isfinite(ours["sd"]) else None, "n": int(ours["n"]),
                     "paper": paper, "paper_sd": paper_sd,
-                    "ratio": round(float(mean) / paper, 3) if finite and paper else None}
+                    "ratio": round(float(mean) / paper, 3) if finite and paper and comparable else None}
     return out
 
 
