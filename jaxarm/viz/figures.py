@@ -53,6 +53,18 @@ def plt():
 class RunFolder:
     """The files of a `jaxarm train`/`test` folder that the figures read."""
 
+    @classmethod
+    def from_arguments(cls, ap: argparse.ArgumentParser, args) -> "RunFolder":
+        """The folder of ``args.run``, with ``args.network`` checked against it; a bad value exits through
+        ``ap.error`` with one line (the commands `jaxarm figures` and `jaxarm video`)."""
+        try:
+            run = cls(args.run)
+        except FileNotFoundError as e:
+            ap.error(str(e))
+        if not 0 <= args.network < run.n:
+            ap.error(f"--network {args.network}: the run has {run.n} networks (0..{run.n - 1})")
+        return run
+
     def __init__(self, path):
         self.path = Path(path)
         if not (self.path / "results.json").is_file() or not (self.path / "trajectories.npz").is_file():
@@ -438,12 +450,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--grid", action="store_true", help="also draw one panel per network (raster and hand paths)")
     ap.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
     args = ap.parse_args(argv)
-    try:
-        run = RunFolder(args.run)
-    except FileNotFoundError as e:
-        ap.error(str(e))
-    if not 0 <= args.network < run.n:
-        ap.error(f"--network {args.network}: the run has {run.n} networks (0..{run.n - 1})")
+    run = RunFolder.from_arguments(ap, args)
     if not 0 < args.bin_ms <= 10_000:
         ap.error(f"--bin-ms {args.bin_ms:g}: must be in (0, 10000] ms")
     if not 10 <= args.dpi <= 1200:

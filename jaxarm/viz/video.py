@@ -233,12 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--naive", action="store_true", help="show the naive (untrained) network's test instead")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
-    try:
-        run = RunFolder(args.run)
-    except FileNotFoundError as e:
-        ap.error(str(e))
-    if not 0 <= args.network < run.n:
-        ap.error(f"--network {args.network}: the run has {run.n} networks (0..{run.n - 1})")
+    run = RunFolder.from_arguments(ap, args)
     if not 1 <= args.fps <= 120:
         ap.error(f"--fps {args.fps:g}: must be in [1, 120]")
     end = float(run.traj["t"][-1])
