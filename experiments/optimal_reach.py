@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxarm.analysis import dimensionless_jerk, reach_metrics
-from jaxarm.control.optimal_reach import COSTS, OptimalReachConfig, optimal_reach
+from jaxarm.control.optimal_reach import COSTS, OptimalReachConfig, make_optimal_reach
 from jaxarm.task.config import Target
 
 SAMPLE_S = 0.01  # the closed loop's reach metrics sample the hand every 10 ms
@@ -35,12 +35,12 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     rows, paths = [], {}
-    for target in args.targets:
-        xy = Target.named(target).xy_m
-        for cost in COSTS:
-            cfg = replace(OptimalReachConfig(cost=cost), iterations=args.iterations)
+    for cost in COSTS:
+        reach = make_optimal_reach(replace(OptimalReachConfig(cost=cost), iterations=args.iterations))
+        for target in args.targets:   # one compiled program per cost; the target is traced
+            xy = Target.named(target).xy_m
             t0 = time.perf_counter()
-            r = optimal_reach(xy, cfg)
+            r = reach(xy)
             wall = time.perf_counter() - t0
             every = int(round(SAMPLE_S / r.dt_s))
             hand = np.concatenate([[r.hand_m[0]], r.hand_m[every - 1::every]])

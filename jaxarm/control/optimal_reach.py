@@ -31,6 +31,8 @@ import optax
 from jaxarm.config.validate import check_choice, check_range
 
 COSTS = ("min-effort", "min-time")
+#: The min-time cost counts distance in this unit (cm), so that it is of the same order as the rest term.
+_MIN_TIME_DISTANCE_UNIT_M = 0.01
 
 
 @dataclass(frozen=True)
@@ -99,8 +101,8 @@ def _interpolation_matrix(knots: int, steps: int) -> np.ndarray:
 
 
 def make_optimal_reach(config: OptimalReachConfig, arm=None):
-    """Build the optimiser for ``config``: returns a pure, jitted ``solve(target_xy_m) -> (logits, loss_history)``
-    and ``rollout(logits) -> (excitations, hand, q, forces)``. ``arm``: default the smooth fast musculoskeletal arm."""
+    """Build the optimiser for ``config``: returns ``reach(target_xy_m) -> OptimalReach``, compiled once (the target
+    is traced, so every target reuses the program). ``arm``: default the smooth fast musculoskeletal arm."""
     if arm is None:
         from jaxarm.arm import make_arm
         arm = make_arm("musculoskeletal", smooth=True)
@@ -133,7 +135,7 @@ def make_optimal_reach(config: OptimalReachConfig, arm=None):
         # Softened distance beyond the radius: sqrt(d² + r²) - r is ~d far away and ~0 inside.
         r = config.radius_m
         far = jnp.sqrt(dist2 + r * r) - r
-        return jnp.mean(far) / 0.01 + rest + config.effort_weight * effort
+        return jnp.mean(far) / _MIN_TIME_DISTANCE_UNIT_M + rest + config.effort_weight * effort
 
     @jax.jit
     def solve(target_xy):
@@ -150,19 +152,18 @@ def make_optimal_reach(config: OptimalReachConfig, arm=None):
         (logits, _), losses = jax.lax.scan(it, (logits, optimiser.init(logits)), None, length=config.iterations)
         return logits, losses
 
-    return solve, jax.jit(rollout)
+    rollout = jax.jit(rollout)
+
+    def reach(target_xy_m) -> OptimalReach:
+        logits, losses = solve(jnp.asarray(target_xy_m, jnp.float32))
+        us, hand, q, force = rollout(logits)
+        return OptimalReach(np.asarray(us), np.asarray(hand), np.asarray(q), np.asarray(force), np.asarray(losses),
+                            float(arm.dt_s))
+    return reach
 
 
 def optimal_reach(target_xy_m, config: OptimalReachConfig | None = None, arm=None) -> OptimalReach:
     """The optimised reach to ``target_xy_m`` (2,) m from the arm's start posture (see module docstring).
     ``config``: the problem (default :class:`OptimalReachConfig`); ``arm``: default the smooth fast
-    musculoskeletal arm."""
-    config = config or OptimalReachConfig()
-    if arm is None:
-        from jaxarm.arm import make_arm
-        arm = make_arm("musculoskeletal", smooth=True)
-    solve, rollout = make_optimal_reach(config, arm)
-    logits, losses = solve(jnp.asarray(target_xy_m, jnp.float32))
-    us, hand, q, force = rollout(logits)
-    return OptimalReach(np.asarray(us), np.asarray(hand), np.asarray(q), np.asarray(force), np.asarray(losses),
-                        float(arm.dt_s))
+    musculoskeletal arm. For several targets, :func:`make_optimal_reach` compiles once."""
+    return make_optimal_reach(config or OptimalReachConfig(), arm)(target_xy_m)
