@@ -61,6 +61,7 @@ def test_vmap_over_metaparameter_sets_compiles_once(fns):
     assert len(traces) == 1
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_train_command_resumes_bit_for_bit(tmp_path):
     from jaxarm.run import Run
 
@@ -271,6 +272,7 @@ def test_protocol_checks_map_each_change_to_one_field(tmp_path):
                   str(tmp_path)])
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
     # experiments/learning_curve.py: the test after epoch E is jaxarm train's test of an E-epoch run (same keys), the
     # row before training is the naive test, and a curve killed after one epoch resumes to the same rows.
@@ -335,6 +337,7 @@ def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
         main(["test", "--from", str(out), "--fresh-noise", "-1", "--out", str(tmp_path / "bad")])
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_a_run_that_loses_spikes_fails_with_the_counts(tmp_path):
     """The XLA kernel's spike lists are fixed-capacity: squeezed to one entry and one pass, spikes are lost, and a
     training run stops with the counts instead of carrying on with a wrong network."""
@@ -369,6 +372,7 @@ def test_scaling_inside_the_loop_brings_a_grown_network_back_to_its_initial_tota
             assert total > 1.4 * s0
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_native_and_xla_kernels_train_identically_and_babbling_switches():
     """1.5 s of training of two networks with scaling every 1 s: both kernels give the same critic signals and the
     same gains (they share model, state layout and noise stream), and the babbling pattern changes in the epoch."""
@@ -393,6 +397,7 @@ def test_native_and_xla_kernels_train_identically_and_babbling_switches():
     assert np.all(np.asarray(tn.babble.last_change_ms) >= 1000.0)
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_a_run_resumes_only_on_the_kernel_it_began_on(tmp_path):
     from jaxarm.run import Run
     from jaxarm.network import NetworkConfig, native

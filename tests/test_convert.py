@@ -205,6 +205,7 @@ def _same_up_to_lattice(new: str, old: str, atol: float):
     return float(np.abs(a - b).max(initial=0.0)) <= atol
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 @needs_osim
 def test_regeneration_matches_the_committed_assets():
     """Regenerating gives the committed assets: the same text, fitted site coordinates within 50 um (5 steps of the

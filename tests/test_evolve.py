@@ -137,7 +137,7 @@ def test_loop_compiles_once_and_counts_traces():
     assert float(state.archive.fitness[0]) == float(np.min(h.best))
 
 
-@pytest.mark.parametrize("strategy", ["CMA_ES", "SimpleGA"])
+@pytest.mark.parametrize("strategy", ["CMA_ES", pytest.param("SimpleGA", marks=pytest.mark.slow)])  # GA: slow suite (8-min budget)
 def test_candidates_respect_bounds(strategy):
     """A huge initial width makes the strategy propose points far outside the cube; every evaluated metaparameter
     set must still be inside BOUNDS (the fitness reports how many fields were outside)."""
@@ -173,7 +173,7 @@ def test_frozen_fields_stay_at_their_values():
         np.testing.assert_allclose(state.history.metrics_mean[name], value, rtol=1e-6)   # a float32 mean
 
 
-@pytest.mark.parametrize("strategy", ["CMA_ES", "SimpleGA"])
+@pytest.mark.parametrize("strategy", ["CMA_ES", pytest.param("SimpleGA", marks=pytest.mark.slow)])  # GA: slow suite (8-min budget)
 def test_nan_fitness_is_ranked_worst_counted_and_reported(strategy, tmp_path):
     """The 'quadratic-diverging' benchmark is NaN where learn_rate's unit coordinate > 0.6; a fitness that is also
     -inf/+inf on other seeds is a failure too. Failures never enter the archive, are counted per generation, and
@@ -240,6 +240,7 @@ def test_common_and_independent_seeds():
     assert np.all(np.asarray(h.median) == np.asarray(h.best)) and len(set(np.asarray(h.best).tolist())) == 1
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_batched_evaluation_equals_one_vmap():
     """eval_batch_size runs the population in sequential batches (less memory) with the same result."""
     fitness = fit.make_quadratic(0.01)
@@ -270,6 +271,7 @@ def test_reevaluation_ranks_the_top_k_again(tmp_path):
     assert int(result.state.generation) == 6
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_killed_reevaluation_resumes_where_it_stopped(tmp_path):
     """Re-evaluation goes one candidate at a time and saves each result: with the file cut back to 4 of 10 (a kill
     after the 4th), a rerun evaluates only the other 6 and writes the same top_k.json; the one-at-a-time results
@@ -301,6 +303,7 @@ def test_killed_reevaluation_resumes_where_it_stopped(tmp_path):
     assert sum(ln.startswith("re-evaluated ") and "/10:" in ln for ln in lines) == 10
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_extended_search_reevaluates_only_new_archive_members(tmp_path):
     """Every candidate is re-evaluated with the same keys, so its result depends on it alone: after the search is
     extended, saved results are reused for the members still in the archive and only the new ones are evaluated,
@@ -353,7 +356,7 @@ def test_genetic_algorithm_improves():
 
 
 # --------------------------------------------------------------------------------------------- checkpoints / resume
-@pytest.mark.parametrize("strategy", ["CMA_ES", "SimpleGA"])
+@pytest.mark.parametrize("strategy", ["CMA_ES", pytest.param("SimpleGA", marks=pytest.mark.slow)])  # GA: slow suite (8-min budget)
 def test_resumed_search_equals_uninterrupted_bit_for_bit(strategy, tmp_path):
     space = SearchSpace.make(freeze=["epochs", "explore_tot"])
     config = EvolveConfig(strategy=strategy, population_size=6, generations=7, chunk_size=3, seeds_per_candidate=2,
@@ -431,6 +434,7 @@ def test_registry_builds_and_lists():
     assert float(fit.make_quadratic(0.0)(KEY, opt)[0]) == pytest.approx(0.0, abs=1e-10)
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_extended_search_equals_one_planned_that_long(tmp_path):
     """Asking a finished (or stopped) search for more generations continues it; the result equals a search
     planned that long from the start, bit for bit. Fewer generations than done is refused."""

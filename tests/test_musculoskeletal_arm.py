@@ -91,10 +91,9 @@ def test_joint_limits_hold_under_maximal_excitation(fast):
     assert worst[0] < np.radians(3.6) and worst[1] < np.radians(2.1), np.degrees(worst)
 
 
-@pytest.mark.parametrize("seeds", [pytest.param(range(7, 11), id="4-seeds"),
-                                   pytest.param(range(7, 27), id="20-seeds", marks=pytest.mark.slow)])
-def test_backends_agree_and_are_well_conditioned_on_smooth_inputs(fast, mjx_arm, seeds):
-    """Seeds of smooth random excitation (1 s; 20 in the slow suite): fast and MJX within 1 deg of each other, and
+@pytest.mark.slow  # MJX compiles for ~40 s: the default suite's 8-minute budget on CI
+def test_backends_agree_and_are_well_conditioned_on_smooth_inputs(fast, mjx_arm):
+    """20 seeds of smooth random excitation (1 s): fast and MJX within 1 deg of each other, and
     moving the start shoulder angle by 1e-4 rad moves either path by < 1 deg (with one 1 ms muscle step per arm step
     the backends differed by 6 deg and a 1e-4 rad start moved a path by 7 deg: experiments/arm_convergence.py)."""
     import sys
@@ -104,7 +103,7 @@ def test_backends_agree_and_are_well_conditioned_on_smooth_inputs(fast, mjx_arm,
     from arm_convergence import paths
     from jaxarm.arm.inputs import smooth_random_excitations
 
-    us = np.stack([smooth_random_excitations(seed) for seed in seeds])
+    us = np.stack([smooth_random_excitations(seed) for seed in range(7, 27)])
     q0 = np.array([0.62, 1.53])
     runs = {name: (paths(arm, q0, us), paths(arm, q0 + [1e-4, 0.0], us)) for name, arm in
             (("fast", fast), ("mjx", mjx_arm))}

@@ -41,9 +41,11 @@ def assert_states_close(a, b):
 
 
 @needs_native
-@pytest.mark.parametrize("summation,threshold_test,crossing", [
-    ("sequential", "every_step", "after_step"), ("linear", "every_step", "after_step"),
-    ("sequential", "on_event", "after_step"), ("sequential", "every_step", "per_event")])
+@pytest.mark.parametrize("summation,threshold_test,crossing", [   # the options' variants: slow suite (8-min budget)
+    ("sequential", "every_step", "after_step"),
+    *(pytest.param(*v, marks=pytest.mark.slow) for v in [("linear", "every_step", "after_step"),
+                                                         ("sequential", "on_event", "after_step"),
+                                                         ("sequential", "every_step", "per_event")])])
 def test_batched_run_matches_xla(summation, threshold_test, crossing):
     """8 networks, own wiring each, 250 ms from rest (the start-of-run P volley included)."""
     nx, nn = pair(event_summation=summation, threshold_test=threshold_test, crossing=crossing)
@@ -81,6 +83,7 @@ def test_shared_wiring_nested_vmap_and_unbatched_state():
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 @needs_native
 def test_paths_can_hand_a_state_over_mid_run():
     """The state layout is shared: 100 ms native then 100 ms XLA equals 200 ms XLA."""
@@ -137,6 +140,7 @@ def test_auto_falls_back_to_xla_and_native_says_why(monkeypatch):
         Network(NetworkConfig(kernel="native")).uses_native_kernel
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 @needs_native
 def test_em_event_budget_stops_the_test_noise_in_both_kernels():
     """The original's test noise to EM is a NetStim with a finite `number` (spec §5): with a budget of B events an

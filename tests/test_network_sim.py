@@ -24,14 +24,19 @@ def simulate(net, wiring, key, n_chunks, em_rates=(152.76, 50.0, 50.0, 50.0), co
     return state, (spikes.reshape(-1, spikes.shape[-1]) if collect else None)
 
 
-@pytest.fixture(scope="module", params=["xla", "native"])
-def net(request):
-    """Every test runs on both kernels (the native one is skipped where it cannot be built)."""
-    if request.param == "native":
+def make_net(kernel: str) -> Network:
+    """The network on ``kernel`` (the native one is skipped where it cannot be built)."""
+    if kernel == "native":
         from jaxarm.network import native
         if not native.available():
             pytest.skip(f"native kernel unavailable: {native.status()}")
-    return Network(NetworkConfig(dt_ms=0.5, kernel=request.param))
+    return Network(NetworkConfig(dt_ms=0.5, kernel=kernel))
+
+
+@pytest.fixture(scope="module", params=["xla", "native"])
+def net(request):
+    """Every test runs on both kernels."""
+    return make_net(request.param)
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +72,9 @@ def test_block_delivery_equals_per_step_delivery(net, wiring, raster):
     np.testing.assert_array_equal(np.asarray(spikes1), spikes)
 
 
-def test_vmapped_networks_equal_single_runs(net):
+@pytest.mark.parametrize("kernel", [pytest.param("xla", marks=pytest.mark.slow), "native"])  # XLA: slow suite (8-min budget)
+def test_vmapped_networks_equal_single_runs(kernel):
+    net = make_net(kernel)
     keys = jax.random.split(jax.random.key(11), 3)
     wirings = jax.vmap(net.make_wiring)(keys)          # one wiring per network (batched delivery tables)
     batched, _ = jax.jit(jax.vmap(lambda w, k: simulate(net, w, k, 12)))(wirings, keys)
@@ -133,7 +140,9 @@ def test_tags_match_brute_force_pairing(net, wiring, raster):
     assert np.sum(pdope > 0) > 100
 
 
-def test_capacity_counters_and_no_lost_spikes_30_networks(net):
+@pytest.mark.parametrize("kernel", [pytest.param("xla", marks=pytest.mark.slow), "native"])  # XLA: slow suite (8-min budget)
+def test_capacity_counters_and_no_lost_spikes_30_networks(kernel):
+    net = make_net(kernel)
     keys = jax.random.split(jax.random.key(21), 60)
     wirings = jax.vmap(net.make_wiring)(keys[:30])
     rates = jnp.tile(jnp.array([[152.76, 50.0, 152.76, 50.0]]), (30, 1))

@@ -95,6 +95,7 @@ def test_preset_round_trip_from_search(search, preset_dir):
         presets.save(p, preset_dir)
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_reconstructed_command_resumes_its_search(tmp_path, capsys):
     """A preset's reconstructed command carries start, frozen and sigma values exactly (not rounded to 6 digits,
     which is a different search space the checkpoint refuses): run again, it extends the search it came from."""
@@ -113,6 +114,7 @@ def test_reconstructed_command_resumes_its_search(tmp_path, capsys):
     assert json.loads((out / "history.json").read_text())["generations_done"] == 2
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_reevaluation_on_one_target_makes_a_preset_for_it(tmp_path, capsys):
     """--reevaluate-targets ranks a two-target search's top-k for one target (the paper's "best 30 configurations
     for each case"): top_k.json says so, the preset is for that target, its command re-creates the re-evaluation,
@@ -156,6 +158,7 @@ def test_preset_from_a_stopped_search_needs_allow_unfinished(tmp_path, capsys):
     assert search["generations_done"] == 1 and search["config"]["generations"] == 3 and search["search_stopped_early"]
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
     from jaxarm.paper.reproduce import reproduce
 
@@ -185,6 +188,7 @@ def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
     assert again["networks"] == top30["networks"]
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_reproduce_resumes_past_a_damaged_checkpoint(tmp_path, preset_dir, capsys):
     from conftest import truncate_newest_checkpoint
     from jaxarm.paper.reproduce import reproduce
@@ -203,6 +207,7 @@ def test_reproduce_resumes_past_a_damaged_checkpoint(tmp_path, preset_dir, capsy
         assert a["networks"] == b["networks"] and a["history"] == b["history"]
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_original_preset_reports_top30_null(tmp_path, capsys):
     out = tmp_path / "orig"
     assert main(["reproduce", "--preset", "original", "--out", str(out), *TINY]) == 0
@@ -252,6 +257,7 @@ def test_a_one_target_preset_reproduces_its_target_by_default(tmp_path, preset_d
     assert "note: preset 'bottom-only' was tuned for the bottom target; running it on left too" in lines
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
     """`--set NAME=VALUE` replaces that metaparameter in the best set (a) and in each top set (b), is recorded in
     success_table.json, and a value outside its bound is refused naming the field and its range; `--dt-ms` sets

@@ -188,6 +188,7 @@ def _stream(tmp_path, with_junk: bool):
     return summary, log, err, sent
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_junk_on_the_port_is_counted_and_changes_nothing(tmp_path):
     # Issue 26: a live stream plus junk on the same port; the robot used to follow 16- and 32-byte junk.
     clean, _, clean_err, _ = _stream(tmp_path / "clean", with_junk=False)

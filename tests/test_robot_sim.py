@@ -141,6 +141,7 @@ def test_wam7_wrist_locked_variant_runs(short_traj):
     assert within_joint_range(log.rows[:, 10:14]) and np.all(np.abs(log.rows[:, 14:18]) <= LIMITS + 1e-9)
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_network_training_trajectory_streams_to_the_robot(tmp_path):
     # experiments/wam_tracking.py --network: a spiking network's closed-loop training drives the arm, the joint
     # angles (10 ms samples) go to the robot. Simple arm and 2 s keep it short; the same seed gives the same path.

@@ -26,6 +26,7 @@ def test_the_suite_runs_on_two_devices():
     assert jax.device_count() == 2
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_an_odd_batch_padded_over_two_devices_equals_one_device(tmp_path):
     from jaxarm.experiment import write_outputs
     from jaxarm.run import Run
@@ -48,6 +49,7 @@ def test_an_odd_batch_padded_over_two_devices_equals_one_device(tmp_path):
         np.testing.assert_array_equal(ta[k], tb[k], err_msg=k)
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_a_run_checkpointed_on_two_devices_resumes_on_one(tmp_path):
     from jaxarm.run import Run
 
