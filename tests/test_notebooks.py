@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 
 NOTEBOOKS = sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
+#: Run in the slow suite (each compiles a search or a robot pipeline: ~20-45 s; the default suite's 8-minute budget).
+SLOW = {"evolution.ipynb", "robot.ipynb"}
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
@@ -18,7 +20,8 @@ def test_notebook_is_valid_and_its_code_parses(path):
             compile("".join(cell["source"]), f"{path.name}", "exec")
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW else p
+                                  for p in NOTEBOOKS], ids=lambda p: p.name)
 def test_notebook_runs_at_tiny_size(path, monkeypatch, tmp_path):
     import matplotlib
 
