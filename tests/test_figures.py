@@ -98,8 +98,17 @@ def test_video_of_a_1s_test_decodes_to_the_frames_and_size_asked(run, tmp_path, 
     assert main(["video", str(run), "--out", str(tmp_path / "part.mp4"), "--fps", "10", "--start-s", "0.25",
                  "--stop-s", "0.75", "--size", "160x120", "--no-progress"]) == 0
     assert sum(1 for _ in imageio.get_reader(tmp_path / "part.mp4")) == 5
+    # The simulated WAM drawn as a second arm (tab:purple) from a robot log; without the log, no purple anywhere.
+    log = _robot_log(tmp_path / "wam.csv")
+    assert main(["video", str(run), "--out", str(tmp_path / "wam.mp4"), "--fps", "10", "--stop-s", "0.3",
+                 "--robot-log", str(log), "--size", "320x240", "--no-progress"]) == 0
+    purple = [int(np.sum(np.all(np.abs(f[:, :130].astype(int) - (148, 103, 189)) < 30, axis=-1)))   # arm panel
+              for f in (imageio.get_reader(tmp_path / n).get_data(0) for n in ("wam.mp4", "reach.mp4"))]
+    assert purple[0] > 30 and purple[1] == 0, purple
     for argv, msg in ((["--size", "321x240"], "both even"), (["--stop-s", "2"], "stop <= 1 s"),
-                      (["--fps", "0"], "--fps 0: must be in [1, 120]")):
+                      (["--fps", "0"], "--fps 0: must be in [1, 120]"),
+                      (["--renderer", "mujoco"], "--renderer mujoco: the simple arm has no MJCF model"),
+                      (["--robot-log", str(tmp_path / "none.csv")], "none.csv: no such file")):
         with pytest.raises(SystemExit):
             main(["video", str(run), "--out", str(tmp_path / "x.mp4")] + argv)
         assert msg in capsys.readouterr().err
@@ -121,3 +130,40 @@ def test_musculoskeletal_run_draws_its_muscles(tmp_path):
     assert main(["video", str(run), "--out", str(tmp_path / "m.mp4"), "--fps", "10", "--size", "320x180",
                  "--no-progress"]) == 0
     assert sum(1 for _ in imageio.get_reader(tmp_path / "m.mp4")) == 3
+
+
+def _mujoco_video(run, out, gl):
+    """`jaxarm video --renderer mujoco` in a child process (MuJoCo reads MUJOCO_GL when it is imported)."""
+    import os
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "jaxarm.cli", "video", str(run), "--renderer", "mujoco", "--out",
+                           str(out), "--fps", "10", "--size", "480x270", "--no-progress"],
+                          capture_output=True, text=True, timeout=300, env=dict(os.environ, MUJOCO_GL=gl))
+
+
+@pytest.mark.slow
+def test_mujoco_renders_the_musculoskeletal_arm_where_it_can(tmp_path):
+    """--renderer mujoco: frames of the MJCF arm (egl or osmesa); where neither renders offscreen, the command says so
+    in one line and exits 2, and the test is skipped with that line."""
+    import imageio.v2 as imageio
+
+    run = tmp_path / "ms"
+    assert main(["train", "--arm", "musculoskeletal", "--networks", "1", "--epochs", "1", "--epoch-s", "0.1",
+                 "--test-s", "0.5", "--out", str(run), "--no-progress", "--record-spikes"]) == 0
+    for gl in ("egl", "osmesa"):
+        proc = _mujoco_video(run, tmp_path / "mj.mp4", gl)
+        if proc.returncode == 0:
+            break
+        assert proc.returncode == 2 and "cannot render offscreen" in proc.stderr, proc.stderr[-2000:]
+        assert len(proc.stderr.strip().splitlines()[-1]) < 400
+    else:
+        pytest.skip(f"MuJoCo cannot render offscreen here: {proc.stderr.strip().splitlines()[-1]}")
+    frames = [f for f in imageio.get_reader(tmp_path / "mj.mp4")]
+    assert len(frames) == 5 and frames[0].shape == (270, 480, 3)
+    panel = [f[:, :200].astype(float) for f in frames]                 # the arm panel (left)
+    assert panel[0].std() > 5.0                                         # something was rendered
+    assert np.abs(panel[-1] - panel[0]).mean() > 0.1                    # the arm moved
+    red = (panel[0][..., 0] > 120) & (panel[0][..., 1] < 110) & (panel[0][..., 2] < 110)
+    assert red.sum() > 20                                               # the target disc

@@ -8,6 +8,10 @@ the target's success circle and the hand's trace so far. Right: the network's sp
 ``jaxarm figures``' Fig. 5) above the EM readout. Frames are drawn with matplotlib (Agg) and encoded to H.264 by
 imageio-ffmpeg, whose wheel ships its own ffmpeg.
 
+With ``--robot-log`` (a `jaxarm wam-sim` CSV of the streamed test) the simulated WAM follows as a second arm.
+With ``--renderer mujoco`` (musculoskeletal arm; ``MUJOCO_GL=egl`` or ``osmesa``) MuJoCo renders the arm panel from
+the MJCF model offscreen (:mod:`jaxarm.viz.mujoco_render`).
+
 Frame k (k = 0 .. round((stop - start) x fps) - 1) shows time start + k / fps; the arm between the 10 ms samples of
 ``trajectories.npz`` is interpolated linearly. Needs ``spikes.npz`` for the raster (``--record-spikes``); without
 it the video shows the arm alone and says so.
@@ -52,13 +56,14 @@ class MuscleProjector:
         for q1 in np.linspace(-0.5, 1.8, 6):
             for q2 in np.linspace(0.0, 2.4, 6):
                 q = np.array([q1, q2])
-                xs.append(self._joints3d(q))
+                xs.append(self.joints3d(q))
                 ys.append(planar_joints(q, segments_m))
         x3 = np.concatenate(xs)
         ones = np.ones((len(x3), 1))
         self.map, *_ = np.linalg.lstsq(np.hstack([x3, ones]), np.concatenate(ys), rcond=1e-6)
 
-    def _joints3d(self, q):
+    def joints3d(self, q):
+        """(3, 3) positions of the humerus, ulna and hand bodies at joint angles q (rad), the model's frame, m."""
         self.data.qpos[:] = q
         self.mujoco.mj_fwdPosition(self.model, self.data)
         return self.data.xpos[self.bodies].copy()
@@ -68,7 +73,7 @@ class MuscleProjector:
 
     def frame(self, q):
         """(bones (3, 2): shoulder, elbow, hand; [muscle path (points, 2)] in the run's muscle order)."""
-        bones = self.project(self._joints3d(q))
+        bones = self.project(self.joints3d(q))
         wrap = self.data.wrap_xpos.reshape(-1, 3)
         paths = [self.project(wrap[self.data.ten_wrapadr[i]: self.data.ten_wrapadr[i] + self.data.ten_wrapnum[i]])
                  for i in self.tendons]
@@ -96,8 +101,12 @@ def frame_times(start_s: float, stop_s: float, fps: float) -> np.ndarray:
 
 def make_video(run: RunFolder, out: Path, network: int = 0, fps: float = 30.0, start_s: float = 0.0,
                stop_s: float | None = None, size=(960, 540), raster_s: float = 0.5, naive: bool = False,
-               progress: bool = True) -> dict:
-    """Write the MP4 and return {"frames", "size", "fps", "path"}."""
+               progress: bool = True, renderer: str = "matplotlib", robot_log: Path | None = None) -> dict:
+    """Write the MP4 and return {"frames", "size", "fps", "path", "renderer"}. ``renderer``: "matplotlib" draws the
+    arm panel itself; "mujoco" (musculoskeletal arm) has MuJoCo render the MJCF model offscreen
+    (:mod:`jaxarm.viz.mujoco_render`). ``robot_log``: a `jaxarm wam-sim` CSV log of this network's trajectory
+    streamed to the simulated WAM: the WAM's joint angles (its first packet at the test's time 0) drawn as a second
+    arm following the virtual one."""
     import imageio.v2 as imageio
     from tqdm import tqdm
 
@@ -169,8 +178,16 @@ def make_video(run: RunFolder, out: Path, network: int = 0, fps: float = 30.0, s
     ax_u.set_ylim(-0.02, 1.02)
     for ax in (ax_r, ax_u):
         cursors.append(ax.axvline(start_s, color="k", lw=0.8))
+    wam = None
+    if robot_log is not None:
+        wam_t, wam_q = robot_angles(robot_log)
+        wam_line, = ax_arm.plot([], [], "--o", color="tab:purple", lw=2, ms=4, zorder=4, label="WAM (simulated)")
+        ax_arm.legend(loc="lower left", fontsize=7)
+        wam = (wam_t, wam_q, wam_line)
     fig.tight_layout()
-
+    mj = None
+    if renderer == "mujoco":
+        mj = _mujoco_panel(run, ax_arm, muscles, segments, target, radius)
     writer = imageio.get_writer(out, fps=fps, codec="libx264", macro_block_size=2, quality=7)
     # ffmpeg is started by fork + exec at the first frame; JAX's warning about forking a multithreaded process is
     # about a child that goes on running Python, which this one does not.
@@ -182,7 +199,13 @@ def make_video(run: RunFolder, out: Path, network: int = 0, fps: float = 30.0, s
                 k = int(np.searchsorted(t_arm, t, side="right"))
                 path = np.vstack([hand[:k], _interp(t, t_arm, hand)[None]])
                 trace.set_data(path[:, 0], path[:, 1])
-                if muscles is not None:
+                if mj is not None:
+                    render, image, activation, t_act = mj
+                    a = np.zeros(len(render.tendons)) if activation is None else _interp(t, t_act, activation)
+                    wam_joints = None if wam is None else planar_joints(_interp(t, wam[0], wam[1]), segments)
+                    image.set_data(render.frame(qt, a, path, wam_joints))
+                    joints = planar_joints(qt, segments)
+                elif muscles is not None:
                     projector, activation, t_act, cmap, lines = muscles
                     joints, paths = projector.frame(qt)
                     a = np.clip(_interp(t, t_act, activation), 0.0, 1.0)
@@ -193,6 +216,9 @@ def make_video(run: RunFolder, out: Path, network: int = 0, fps: float = 30.0, s
                 else:
                     joints = planar_joints(qt, segments)
                 bones.set_data(joints[:, 0], joints[:, 1])
+                if wam is not None:
+                    wj = planar_joints(_interp(t, wam[0], wam[1]), segments)
+                    wam[2].set_data(wj[:, 0], wj[:, 1])
                 dist = np.linalg.norm(path[-1] - target)
                 title.set_text(f"{run.label}\nnetwork {network}{' (naive)' if naive else ''}, t = {t:.2f} s, "
                                f"{dist * 100:.1f} cm from the target")
@@ -204,7 +230,49 @@ def make_video(run: RunFolder, out: Path, network: int = 0, fps: float = 30.0, s
         finally:
             writer.close()
             p.close(fig)
-    return {"frames": len(times), "size": [width, height], "fps": fps, "path": str(out)}
+            if mj is not None:
+                mj[0].close()
+    return {"frames": len(times), "size": [width, height], "fps": fps, "path": str(out), "renderer": renderer}
+
+
+def robot_angles(log_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(times s, (T, 2) joint angles rad) of the robot in a `jaxarm wam-sim` CSV log, the times counted from the
+    first packet received (the streamed trajectory's time 0)."""
+    from jaxarm.robot import metrics as rm
+
+    s = rm.signals(rm.load_log(log_path))
+    first = int(np.argmax(s["new"])) if s["new"].any() else 0
+    return s["t"][first:] - s["t"][first], s["robot"][first:]
+
+
+def _mujoco_panel(run: RunFolder, ax_arm, muscles, segments, target, radius):
+    """The arm panel as an image that MuJoCo renders each frame, at the panel's size in pixels; the panel's own
+    artists are hidden. Returns (renderer, image artist, activations (T, muscles) or None, their times s)."""
+    from jaxarm.viz.mujoco_render import MujocoArmRenderer
+
+    if muscles is not None:
+        projector, activation, t_act, _, _ = muscles
+        names = [projector.model.tendon(i).name for i in projector.tendons]
+    else:
+        from jaxarm.arm.geometry import load_mjmodel, tendon_names
+
+        names, activation, t_act = list(tendon_names(load_mjmodel())), None, None
+    ax_arm.set_aspect("auto")                              # the image fills its panel (pixels = panel's pixels),
+    pos = ax_arm.get_position()                            # less room for the title
+    ax_arm.set_position([pos.x0, pos.y0, pos.width, pos.height * 0.9])
+    box = ax_arm.get_window_extent()
+    w, h = int(box.width) // 2 * 2, int(box.height) // 2 * 2
+    render = MujocoArmRenderer(names, segments, w, h, target, radius)
+    for artist in list(ax_arm.patches) + list(ax_arm.lines):
+        artist.set_visible(False)
+    ax_arm.set_xlim(-0.5, w - 0.5)
+    ax_arm.set_ylim(h - 0.5, -0.5)
+    ax_arm.set_xticks([])
+    ax_arm.set_yticks([])
+    ax_arm.set_xlabel("MuJoCo: the MJCF arm, muscles by activation")
+    ax_arm.set_ylabel("")
+    image = ax_arm.imshow(np.zeros((h, w, 3), np.uint8), interpolation="nearest", aspect="auto")
+    return render, image, activation, t_act
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -231,6 +299,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="frame size in pixels (default 960x540)")
     ap.add_argument("--raster-s", type=float, default=0.5, help="seconds of spikes shown by the raster (default 0.5)")
     ap.add_argument("--naive", action="store_true", help="show the naive (untrained) network's test instead")
+    ap.add_argument("--robot-log", type=Path, default=None, metavar="CSV",
+                    help="a `jaxarm wam-sim --log` CSV of this network's streamed test: also draw the simulated WAM "
+                         "following the arm")
+    ap.add_argument("--renderer", choices=("matplotlib", "mujoco"), default="matplotlib",
+                    help="who draws the arm: matplotlib (default, works everywhere) or MuJoCo offscreen (the MJCF "
+                         "model of the musculoskeletal arm; needs MUJOCO_GL=egl or osmesa set before starting)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
     run = RunFolder.from_arguments(ap, args)
@@ -244,9 +318,19 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--start-s/--stop-s/--fps: {stop - args.start_s:g} s at {args.fps:g} fps is no whole frame")
     if not 0 < args.raster_s <= 60:
         ap.error(f"--raster-s {args.raster_s:g}: must be in (0, 60] s")
+    if args.renderer == "mujoco" and run.arm != "musculoskeletal":
+        ap.error(f"--renderer mujoco: the {run.arm} arm has no MJCF model; it needs a musculoskeletal run")
+    if args.robot_log is not None and not args.robot_log.is_file():
+        ap.error(f"--robot-log {args.robot_log}: no such file")
     out = args.out or run.path / f"video_network{args.network}.mp4"
     out.parent.mkdir(parents=True, exist_ok=True)
-    info = make_video(run, out, args.network, args.fps, args.start_s, stop, args.size, args.raster_s, args.naive,
-                      progress=not args.no_progress)
+    from jaxarm.viz.mujoco_render import RenderUnavailable
+
+    try:
+        info = make_video(run, out, args.network, args.fps, args.start_s, stop, args.size, args.raster_s, args.naive,
+                          progress=not args.no_progress, renderer=args.renderer, robot_log=args.robot_log)
+    except RenderUnavailable as e:
+        print(f"jaxarm video: {e}", file=sys.stderr)
+        return 2
     print(f"{info['frames']} frames of {info['size'][0]}x{info['size'][1]} at {info['fps']:g} fps -> {out}")
     return 0
