@@ -26,6 +26,25 @@ def test_the_suite_runs_on_two_devices():
     assert jax.device_count() == 2
 
 
+def test_no_module_starts_jax_at_import():
+    """Importing any jaxarm module (a notebook's first cell) leaves JAX's devices unchosen, so `jaxarm.parallel.start`
+    and the commands can still give every core its device (evosax computes at import: jaxarm.evolve defers it)."""
+    code = """
+import importlib, pkgutil
+from jax._src import xla_bridge
+import jaxarm
+for m in pkgutil.walk_packages(jaxarm.__path__, "jaxarm."):
+    importlib.import_module(m.name)
+    assert not xla_bridge.backends_are_initialized(), m.name
+from jaxarm import parallel
+parallel.start(devices=3)
+import jax
+assert jax.device_count() == 3, jax.devices()
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+
 @pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_an_odd_batch_padded_over_two_devices_equals_one_device(tmp_path):
     from jaxarm.experiment import write_outputs

@@ -8,8 +8,15 @@
 * :mod:`~jaxarm.evolve.cli`: ``jaxarm evolve``.
 """
 from jaxarm.evolve.fitness import Fitness, FitnessOptions, register
-from jaxarm.evolve.search import STRATEGIES, EvolveConfig, SearchState, make_search
+from jaxarm.evolve.search import EvolveConfig, SearchState, make_search, strategies
 from jaxarm.evolve.space import SearchSpace
 
-__all__ = ["Fitness", "FitnessOptions", "register", "STRATEGIES", "EvolveConfig", "SearchState", "make_search",
+__all__ = ["Fitness", "FitnessOptions", "register", "strategies", "EvolveConfig", "SearchState", "make_search",
            "SearchSpace"]
+
+
+def __getattr__(name: str):
+    # STRATEGIES is read on first use (importing evosax's algorithms starts JAX's backends: jaxarm.evolve.search)
+    if name == "STRATEGIES":
+        return strategies()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -98,8 +98,8 @@ def evolve_main(argv: list[str] | None = None) -> int:
             print(f"{name}  {help_}")
         return 0
     if args.list_strategies:
-        from jaxarm.evolve.search import STRATEGIES
-        print("\n".join(STRATEGIES))
+        from jaxarm.evolve.search import strategies
+        print("\n".join(strategies()))
         return 0
     if args.out is None:
         print("jaxarm evolve: --out is required", file=sys.stderr)

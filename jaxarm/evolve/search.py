@@ -55,14 +55,27 @@ from jaxarm.evolve.space import SearchSpace
 EXCLUDED_STRATEGIES = ("SV_CMA_ES", "SV_Open_ES")
 
 
+@functools.lru_cache(maxsize=None)
 def _strategies() -> dict:
+    # Imported on first use, not with this module: evosax creates arrays when its algorithms are imported, which
+    # starts JAX's backends and fixes the device count before `jaxarm.parallel.start` can choose it.
     from evosax.algorithms import algorithms
     return {k: v for k, v in algorithms.items() if k not in EXCLUDED_STRATEGIES}
 
 
-#: evosax 0.3.2 strategy names (``evosax.algorithms.algorithms`` but :data:`EXCLUDED_STRATEGIES`), e.g. "CMA_ES",
-#: "Sep_CMA_ES", "SimpleGA", "DifferentialEvolution", "PSO", "RandomSearch" (uniform in the unit cube).
-STRATEGIES: tuple[str, ...] = tuple(sorted(_strategies()))
+def strategies() -> tuple[str, ...]:
+    """evosax 0.3.2 strategy names (``evosax.algorithms.algorithms`` but :data:`EXCLUDED_STRATEGIES`), e.g. "CMA_ES",
+    "Sep_CMA_ES", "SimpleGA", "DifferentialEvolution", "PSO", "RandomSearch" (uniform in the unit cube). Also
+    readable as the module attribute ``STRATEGIES`` (computed when first read)."""
+    return tuple(sorted(_strategies()))
+
+
+def __getattr__(name: str):
+    if name == "STRATEGIES":
+        return strategies()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 SEED_MODES = ("common", "independent", "fixed")
 SEED_REDUCES = ("mean", "max")
 #: ``fold_in`` constants that separate the key streams of "fixed" seeds and of re-evaluation from the search's.
@@ -75,7 +88,7 @@ class EvolveConfig:
     """Static configuration of a search (hashable; validated on construction).
 
     Attributes:
-        strategy: evosax strategy name (:data:`STRATEGIES`); "CMA_ES" by default, "SimpleGA" is the genetic
+        strategy: evosax strategy name (:func:`strategies`); "CMA_ES" by default, "SimpleGA" is the genetic
             algorithm closest to the authors' (inspyred) one.
         population_size: candidates per generation.
         generations: generations in the whole search.
@@ -109,7 +122,7 @@ class EvolveConfig:
     eval_batch_size: int = 0
 
     def __post_init__(self):
-        check_choice(self, "strategy", STRATEGIES)
+        check_choice(self, "strategy", strategies())
         check_range(self, "population_size", 2, None, integer=True)
         check_range(self, "generations", 1, None, integer=True)
         check_range(self, "chunk_size", 1, None, integer=True)
