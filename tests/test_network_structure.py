@@ -231,3 +231,63 @@ def test_readout_sums_the_whole_window_up_to_its_bound():
         expected = np.floor((window + 50.0) / 10.0) - 5     # 7 rows for the original 76.08 ms, 20 for 200 ms
         u = ro.excitation(dataclasses.replace(cfg, readout_clip=False), state, v_em_max=1.0, window_ms=window)
         np.testing.assert_allclose(np.asarray(u), np.full(4, expected))
+
+
+# ------------------------------------------------------------------------------------------------ scaled networks
+def test_scaled_network_keeps_in_degrees_the_p_code_and_the_readout_drive():
+    """NetworkConfig.scaled(f): every population f times larger, every in-degree of the spec table kept, the P code
+    coded by f cells per position with the same windows (m), and f times the EM spikes giving the same excitation."""
+    from jaxarm.network import proprio, readout
+
+    base = NetworkConfig()
+    for f in (2, 4):
+        big = base.scaled(f)
+        assert big.sizes == tuple(f * n for n in base.sizes)
+        assert WiringLayout(big).in_degree == SPEC_IN_DEGREE
+        lo, hi = proprio.tuning_windows(big)
+        lo1, hi1 = proprio.tuning_windows(base)
+        np.testing.assert_array_equal(np.unique(lo), np.unique(lo1))   # the same windows, f cells each
+        np.testing.assert_array_equal(np.unique(hi), np.unique(hi1))
+        lengths = np.array([0.101, 0.157, 0.119, 0.188])
+        n1 = np.asarray(proprio.active_cells(base, lengths)).sum()
+        assert np.asarray(proprio.active_cells(big, lengths)).sum() == f * n1 > 0
+        counts = np.array([3.0, 1.0, 0.0, 7.0], np.float32)
+        state1, state_f = readout.init_readout(base), readout.init_readout(big)
+        for _ in range(20):
+            state1, state_f = readout.push(state1, counts), readout.push(state_f, f * counts)
+        np.testing.assert_allclose(readout.excitation(big, state_f), readout.excitation(base, state1), rtol=1e-6)
+    # the original numbering is unchanged: position = index // 4, no normalisation
+    np.testing.assert_array_equal(Populations(base).p_tuning_index(), np.arange(192) // 4)
+    for bad, field in ((lambda: base.scaled(0), "scaled factor"), (lambda: base.scaled(1.5), "scaled factor"),
+                       (lambda: NetworkConfig(p_positions=7), "p_positions")):
+        with pytest.raises(ConfigError, match=field):
+            bad()
+
+
+@pytest.mark.slow
+def test_scaled_network_fires_at_the_rates_of_the_original():
+    """The paper's network and its 2x scaling (8 networks, one 10 s epoch of closed-loop training and a 1 s test,
+    published metaparameters, seeds 0-7): every population's mean rate within 15 % of the original's in training
+    and 20 % in the test (measured: experiments/network_scaling.py, docs/model.md)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent.parent / "experiments"))
+    from network_scaling import RATE_POPS, measure
+
+    from jaxarm.network import Network, NetworkParams, native
+
+    counts = {}
+    for kernel in ("xla", "native") if native.available() else ("xla", "xla"):               # 100 ms of the 2x network, open loop: the same spikes
+        net = Network(NetworkConfig(kernel=kernel).scaled(2))
+        state = net.set_lengths(net.init(jax.random.key(1)), np.array([0.10, 0.16, 0.12, 0.14]))
+        state, _ = jax.jit(lambda s: net.run(net.make_wiring(jax.random.key(0)), s, NetworkParams.original(),
+                                             400))(state)
+        counts[kernel] = np.asarray(state.spike_count)
+    np.testing.assert_array_equal(counts["xla"], counts["native"])
+    assert counts["xla"].sum() > 1000
+    one, two = measure(1, 8, 10.0, "simple"), measure(2, 8, 10.0, "simple")
+    assert one["lost_spikes"] == two["lost_spikes"] == 0
+    for phase, tol in (("train_hz", 0.15), ("test_hz", 0.20)):
+        for p in RATE_POPS:
+            assert abs(two[phase][p] / one[phase][p] - 1) < tol, (phase, p, one[phase][p], two[phase][p])

@@ -6,6 +6,7 @@ original to run). Values the authors tuned by evolution are traced arrays and li
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
@@ -38,8 +39,15 @@ class NetworkConfig:
         p_tuning: "code": each P cell fires for lengths in a window 3 steps wide (12.5 mm); "paper": 2 steps (8.33 mm),
             same centres. Step = (max - min) / cells per group = 4.17 mm either way.
         p_length_range_m: (min, max) muscle length covered by the P code, m.
+        p_positions: positions per muscle group along the length axis (0: one per P cell of the group, n_P / 4, the
+            original's 48). P cell j codes position (j // 4) * p_positions // (n_P / 4): with more cells than
+            positions, each position is coded by n_P / (4 p_positions) cells, and the code's step and window widths
+            (mm) do not change with the population's size.
         p_rate_hz: rate of an active P cell (regular train), Hz.
         p_start_ms: every P cell fires once at this time (NSLOC ``start``), ms.
+        readout_em_reference: the EM population size the readout's ``v_em_max`` refers to (0: the actual size, no
+            normalisation). With it the EM counts are multiplied by reference / n_EM, so a larger EM population
+            drives the muscles as the reference one does (the readout's gain normalised per EM cell).
         readout_clip: clip the motor excitation to [0, 1] (the paper's "thresholded linear" readout). The hoc
             code does not clip (spec §3, §11.7); False reproduces it.
         readout_bins: length of the EM spike-count history, in interface periods; must cover the longest readout
@@ -98,6 +106,8 @@ class NetworkConfig:
     p_length_range_m: tuple[float, float] = (0.03, 0.23)
     p_rate_hz: float = 100.0
     p_start_ms: float = 1.0
+    p_positions: int = 0
+    readout_em_reference: int = 0
     readout_clip: bool = True
     readout_bins: int = 26
     spike_capacity: tuple[int, int, int] = (16, 8, 8)
@@ -137,6 +147,12 @@ class NetworkConfig:
         check_range(self, "p_start_ms", 0.0, 1000.0)
         if not _is_multiple(self.p_start_ms, self.dt_ms) and self.p_start_ms != 0.0:
             raise ConfigError(f"NetworkConfig.p_start_ms = {self.p_start_ms!r}: must be a multiple of dt_ms = {self.dt_ms}")
+        per_group = self.n_p // 4
+        check_range(self, "p_positions", 0, per_group, integer=True)
+        if self.p_positions and per_group % self.p_positions:
+            raise ConfigError(f"NetworkConfig.p_positions = {self.p_positions!r}: must divide the P cells per muscle "
+                              f"group ({per_group}; 0 = one position per cell)")
+        check_range(self, "readout_em_reference", 0, 100_000, integer=True)
         if not isinstance(self.readout_clip, bool):
             raise ConfigError(f"NetworkConfig.readout_clip = {self.readout_clip!r}: must be True or False")
         check_range(self, "readout_bins", 2, 1000, integer=True)
@@ -163,7 +179,24 @@ class NetworkConfig:
         check_choice(self, "kernel", ("auto", "native", "xla"))
         check_range(self, "native_threads", 1, 256, integer=True)
 
+    def scaled(self, factor: int) -> "NetworkConfig":
+        """This network with every population ``factor`` times larger, by the original's scaling rules: in-degrees
+        kept (``pmat_scale / factor``, the original's 0.75 * 6 / scale), the P code kept (its positions; more
+        cells per position) and the readout normalised per EM cell (``readout_em_reference``), so each cell sees
+        the inputs, and the arm the drive, of the network it was scaled from."""
+        if isinstance(factor, bool) or not isinstance(factor, int) or not 1 <= factor <= 100:
+            raise ConfigError(f"NetworkConfig.scaled factor = {factor!r}: an integer in [1, 100]")
+        return dataclasses.replace(
+            self, sizes=tuple(n * factor for n in self.sizes), pmat_scale=self.pmat_scale / factor,
+            p_positions=self.p_positions or self.n_p // 4,
+            readout_em_reference=self.readout_em_reference or self.size("EM"))
+
     # ----- derived static quantities -----
+    @property
+    def p_positions_per_group(self) -> int:
+        """Positions of the P code per muscle group (``p_positions``, or n_P / 4)."""
+        return self.p_positions or self.n_p // 4
+
     def size(self, pop: str) -> int:
         return self.sizes[POPULATIONS.index(pop)]
 

@@ -59,8 +59,10 @@ class Populations:
         return np.arange(self.config.n_p) % N_GROUPS
 
     def p_tuning_index(self) -> np.ndarray:
-        """(n_P,) position of each P cell along its group's length axis: index // 4."""
-        return np.arange(self.config.n_p) // N_GROUPS
+        """(n_P,) position of each P cell along its group's length axis: index // 4 (the original), or with
+        ``NetworkConfig.p_positions``, (index // 4) * p_positions // (n_P / 4)."""
+        per_group = self.config.n_p // N_GROUPS
+        return (np.arange(self.config.n_p) // N_GROUPS) * self.config.p_positions_per_group // per_group
 
     def cell_type_of_network_cells(self) -> np.ndarray:
         """(n_cells,) str: "E", "FS" or "LTS" of each network cell."""

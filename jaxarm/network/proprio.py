@@ -42,7 +42,7 @@ def tuning_windows(config: NetworkConfig) -> tuple[np.ndarray, np.ndarray]:
     pops = Populations(config)
     k = pops.p_tuning_index().astype(np.float64)
     lo_m, hi_m = config.p_length_range_m
-    w = (hi_m - lo_m) / (config.n_p // 4)
+    w = (hi_m - lo_m) / config.p_positions_per_group
     if config.p_tuning == "code":
         lo, hi = lo_m + (k - 1) * w, lo_m + (k + 2) * w
     else:

@@ -63,5 +63,7 @@ def excitation(config: NetworkConfig, state: ReadoutState, v_em_max=V_EM_MAX, wi
     rows = window_rows(config, window_ms, lag_ms)
     t_ms = state.pushes.astype(jnp.float32) * config.interface_ms
     total = jnp.sum(jnp.where(rows[:, None], state.bins, 0.0), axis=0)
+    if config.readout_em_reference:
+        total = total * (config.readout_em_reference / config.size("EM"))
     u = jnp.where(t_ms >= jnp.asarray(window_ms) + lag_ms, total / v_em_max, 0.0)
     return jnp.clip(u, 0.0, 1.0) if config.readout_clip else u
