@@ -12,6 +12,7 @@ run started again with the same command resumes from its last completed epoch an
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import sys
 import time
@@ -22,6 +23,7 @@ import jax
 import numpy as np
 
 from jaxarm import parallel
+from jaxarm.config.network import RUNTIME_FIELDS
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import NAMES, MetaParams
 from jaxarm.loop import LoopConfig
@@ -67,10 +69,20 @@ def unstack(mps: MetaParams) -> list[MetaParams]:
 
 
 def network_config(source) -> NetworkConfig:
-    """The NetworkConfig of a run: ``source`` is a command's parsed options or a run's meta dict; an option that is
-    absent or None keeps NetworkConfig's default."""
-    get = source.get if isinstance(source, dict) else lambda k: getattr(source, k, None)
-    return NetworkConfig(**{k: get(k) for k in NETWORK_OPTIONS if get(k) is not None})
+    """The NetworkConfig of a run: ``source`` is a run's meta dict (every NetworkConfig field it records) or a
+    command's parsed options (``--network FILE``, then ``--network-scale F``, then the :data:`NETWORK_OPTIONS`); an
+    option that is absent or None keeps NetworkConfig's default."""
+    if isinstance(source, dict):
+        fields = {f.name for f in dataclasses.fields(NetworkConfig)} - set(RUNTIME_FIELDS)
+        return NetworkConfig.from_dict({k: v for k, v in source.items() if k in fields and v is not None})
+    base = NetworkConfig.load(source.network) if getattr(source, "network", None) else NetworkConfig()
+    scale = getattr(source, "network_scale", None)
+    if scale is not None:
+        if not 1 <= scale <= 100:
+            raise ConfigError(f"--network-scale {scale}: must be an integer in [1, 100]")
+        base = base.scaled(scale)
+    options = {k: getattr(source, k, None) for k in NETWORK_OPTIONS}
+    return dataclasses.replace(base, **{k: v for k, v in options.items() if v is not None})
 
 
 class Batch:
@@ -119,13 +131,13 @@ class Batch:
         return self.description | self.network_meta()
 
     def network_meta(self) -> dict:
-        """The run's :data:`NETWORK_OPTIONS` that differ from NetworkConfig's defaults (only those are recorded, so
-        folders written before the options existed still resume), and the kernel that runs the network: the native
-        and XLA kernels agree to float rounding, not bit for bit, so a run resumes only on the kernel it began on."""
-        net, default = self.config.network, NetworkConfig()
+        """The run's NetworkConfig fields that differ from the defaults (only those are recorded, so folders
+        written before a field existed still resume; ``jaxarm test --from`` rebuilds the network from them), and
+        the kernel that runs the network: the native and XLA kernels agree to float rounding, not bit for bit, so a
+        run resumes only on the kernel it began on."""
+        net = self.config.network
         kernel = "native" if Network(net).uses_native_kernel else "xla"
-        return {k: getattr(net, k) for k in NETWORK_OPTIONS if getattr(net, k) != getattr(default, k)} | {
-            "kernel": kernel}
+        return net.to_dict(changed_only=True) | {"kernel": kernel}
 
     def layout(self) -> dict:
         """How the batch is laid out over devices (not part of its identity: results do not depend on it)."""

@@ -291,3 +291,54 @@ def test_scaled_network_fires_at_the_rates_of_the_original():
     for phase, tol in (("train_hz", 0.15), ("test_hz", 0.20)):
         for p in RATE_POPS:
             assert abs(two[phase][p] / one[phase][p] - 1) < tol, (phase, p, one[phase][p], two[phase][p])
+
+
+# ------------------------------------------------------------------------------------------------ the network as data
+def test_network_config_round_trips_through_toml_and_json_and_names_bad_fields(tmp_path):
+    import argparse
+
+    from jaxarm.run import network_config
+
+    big = NetworkConfig(dt_ms=0.5, crossing="per_event").scaled(2)
+    for suffix in (".toml", ".json"):
+        path = tmp_path / f"net{suffix}"
+        big.save(path)
+        assert NetworkConfig.load(path) == big
+    text = (tmp_path / "net.toml").read_text()
+    assert "sizes = [384, 88, 40, 384, 88, 40, 384]" in text and "kernel" not in text
+    # a run's meta (the changed fields) rebuilds the network, as `jaxarm test --from` does
+    assert network_config(big.to_dict(changed_only=True) | {"kernel": "native", "target": "left"}) == big
+    # command options: the file, then --network-scale, then the single options
+    args = argparse.Namespace(network=tmp_path / "net.json", network_scale=2, dt_ms=None, threshold_test="on_event",
+                              crossing=None, readout_clip=None)
+    assert network_config(args) == dataclasses.replace(big.scaled(2), threshold_test="on_event")
+    (tmp_path / "bad.toml").write_text("sizes = [1, 2]\nfoo = 3\n")
+    with pytest.raises(ConfigError, match="unknown NetworkConfig field.*foo"):
+        NetworkConfig.load(tmp_path / "bad.toml")
+    (tmp_path / "bad.toml").write_text("sizes = [1, 2]\n")
+    with pytest.raises(ConfigError, match="NetworkConfig.sizes"):
+        NetworkConfig.load(tmp_path / "bad.toml")
+    (tmp_path / "bad.toml").write_text("sizes = [1, 2\n")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        NetworkConfig.load(tmp_path / "bad.toml")
+    with pytest.raises(ConfigError, match="--network-scale 0: must be an integer in"):
+        network_config(argparse.Namespace(network=None, network_scale=0))
+
+
+@pytest.mark.slow
+def test_train_with_a_network_file_equals_network_scale_and_test_rebuilds_it(tmp_path):
+    """`jaxarm train --network FILE` (the 2x network as TOML) and `--network-scale 2` train the same networks; `jaxarm
+    test --from` rebuilds the network from the run's meta and re-tests them identically."""
+    import json
+
+    from jaxarm.cli import main
+
+    NetworkConfig().scaled(2).save(tmp_path / "big.toml")
+    common = ["train", "--networks", "2", "--epochs", "1", "--epoch-s", "0.3", "--test-s", "0.3", "--no-progress"]
+    assert main([*common, "--network", str(tmp_path / "big.toml"), "--out", str(tmp_path / "file")]) == 0
+    assert main([*common, "--network-scale", "2", "--out", str(tmp_path / "scale")]) == 0
+    a, b = (json.loads((tmp_path / d / "results.json").read_text()) for d in ("file", "scale"))
+    assert a["networks"] == b["networks"] and a["config"]["loop"]["network"]["sizes"][0] == 384
+    assert main(["test", "--from", str(tmp_path / "file"), "--test-s", "0.3"]) == 0
+    again = json.loads((tmp_path / "file" / "test" / "results.json").read_text())
+    assert again["networks"] == a["networks"]

@@ -15,6 +15,8 @@ from jaxarm.config.validate import ConfigError, check_choice, check_interval, ch
 
 #: Population names in the order of the original's global cell ids (col.hoc mkcells, spec §2).
 POPULATIONS = ("ES", "IS", "ISL", "EM", "IM", "IML", "P")
+#: NetworkConfig fields that choose how the network is computed, not what it is (never part of a run's identity).
+RUNTIME_FIELDS = ("kernel", "native_threads")
 
 
 def _is_multiple(x: float, step: float) -> bool:
@@ -190,6 +192,66 @@ class NetworkConfig:
             self, sizes=tuple(n * factor for n in self.sizes), pmat_scale=self.pmat_scale / factor,
             p_positions=self.p_positions or self.n_p // 4,
             readout_em_reference=self.readout_em_reference or self.size("EM"))
+
+    # ----- as data -----
+    def to_dict(self, changed_only: bool = False) -> dict:
+        """The fields as plain JSON/TOML values (tuples as lists); ``changed_only``: only those that differ from
+        NetworkConfig's defaults. ``kernel`` and ``native_threads`` (how to compute, not what) are left out."""
+        default = NetworkConfig()
+        out = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.name in RUNTIME_FIELDS or (changed_only and v == getattr(default, f.name)):
+                continue
+            out[f.name] = list(v) if isinstance(v, tuple) else v
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict, base: "NetworkConfig | None" = None, what: str = "network") -> "NetworkConfig":
+        """``base`` (default: NetworkConfig()) with the fields of ``data`` set; an unknown field is an error naming
+        it and the known ones, and every value is validated as the constructor does."""
+        names = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - set(names))
+        if unknown:
+            raise ConfigError(f"{what}: unknown NetworkConfig field(s) {', '.join(unknown)}; known: "
+                              f"{', '.join(names)}")
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        return dataclasses.replace(base or cls(), **values)
+
+    @classmethod
+    def load(cls, path) -> "NetworkConfig":
+        """A NetworkConfig from a TOML (``.toml``) or JSON file of any of its fields (the others keep their
+        defaults), e.g. ``sizes = [384, 88, 40, 384, 88, 40, 384]`` and ``pmat_scale = 0.5625``."""
+        import json
+        import tomllib
+        from pathlib import Path
+
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as e:
+            raise ConfigError(f"--network {path}: cannot read it ({e.strerror})") from None
+        try:
+            data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
+        except (tomllib.TOMLDecodeError, json.JSONDecodeError) as e:
+            raise ConfigError(f"--network {path}: not valid {'TOML' if path.suffix == '.toml' else 'JSON'} ({e})") \
+                from None
+        if not isinstance(data, dict):
+            raise ConfigError(f"--network {path}: expected a table of NetworkConfig fields")
+        return cls.from_dict(data, what=f"--network {path}")
+
+    def save(self, path, changed_only: bool = True) -> None:
+        """Write the fields (by default only those that differ from the defaults) as TOML (``.toml``) or JSON."""
+        import json
+        from pathlib import Path
+
+        path = Path(path)
+        data = self.to_dict(changed_only)
+        if path.suffix == ".toml":
+            lines = [f"{k} = {json.dumps(v)}" for k, v in data.items()]   # numbers, strings, bools, flat arrays
+            path.write_text("\n".join(["# jaxarm NetworkConfig (fields not listed keep their defaults)", *lines]) + "\n")
+        else:
+            path.write_text(json.dumps(data, indent=1) + "\n")
 
     # ----- derived static quantities -----
     @property

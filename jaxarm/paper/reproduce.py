@@ -39,6 +39,7 @@ import jax
 import numpy as np
 
 from jaxarm import parallel
+from jaxarm.config.network import RUNTIME_FIELDS
 from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
 
@@ -73,10 +74,6 @@ def _finished(run) -> dict | None:
     return res if _comparable(res.get("config")) == _comparable(want) else None
 
 
-#: NetworkConfig fields that choose how, not what, is computed: a folder finished with other values is reused (the
-#: two kernels agree to float rounding, tests/test_native_kernel.py; threads never change results). Folders written
-#: before these fields existed lack them.
-_HOW_FIELDS = ("kernel", "native_threads")
 
 
 def _comparable(config):
@@ -85,8 +82,8 @@ def _comparable(config):
     config = json.loads(json.dumps(config))
     net = config.get("loop", {}).get("network")
     if isinstance(net, dict):
-        for k in _HOW_FIELDS:
-            net.pop(k, None)
+        for k in RUNTIME_FIELDS:   # how, not what: a folder finished with other values is reused (the two kernels
+            net.pop(k, None)       # agree to float rounding, tests/test_native_kernel.py; threads never change results)
     return config
 
 
@@ -213,7 +210,8 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
               epochs: int | None = None, epoch_s: float = 30.0, test_s: float = 1.0, top: int = preset_lib.MAX_TOP,
               backend: str = "fast", progress: bool = True, command: str | None = None,
               overrides: dict[str, float] | None = None, stop_after: int | None = None,
-              dt_ms: float | None = None, log=print, preset_dir: Path = preset_lib.PRESET_DIR) -> dict | None:
+              dt_ms: float | None = None, log=print, preset_dir: Path = preset_lib.PRESET_DIR,
+              network=None) -> dict | None:
     """Run (or resume) modes (a) and (b) for every target (``targets`` None: the preset's own targets if it names
     any, else :data:`DEFAULT_TARGETS`); write and return the success table. ``preset`` None: the arm's
     :data:`DEFAULT_PROTOCOL` (a preset, epochs and settings per target and mode). ``overrides`` ({name: value},
@@ -221,7 +219,8 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
     ``epochs`` override sets the training length, as ``--epochs`` does). ``stop_after``:
     stop the first unfinished folder after that many epochs of this call and return None (tests use it to
     interrupt a run). ``dt_ms``: the network clock step (None: NetworkConfig's default), recorded in the runs'
-    meta when not the default."""
+    meta when not the default. ``network``: the NetworkConfig to start from (None: the paper's; ``--network``,
+    ``--network-scale``); its fields that differ from the defaults are recorded in the runs' meta."""
     from jaxarm.run import Run, SetsRun
     from jaxarm.run import stack_rows as stack
     from jaxarm.loop import LoopConfig
@@ -254,9 +253,11 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
     no_top = {t: None if "top30" in plan[t] else f"preset {plan[t]['seeds']['preset'].name!r} has no top list "
                                                  "(only its best set is known)" for t in targets}
 
+    from jaxarm.network import NetworkConfig
     from jaxarm.run import network_config
 
-    network = network_config({"dt_ms": dt_ms})
+    network = network_config((network or NetworkConfig()).to_dict(changed_only=True)
+                             | ({"dt_ms": dt_ms} if dt_ms is not None else {}))
 
     def config(target, n_epochs):
         return LoopConfig(arm=arm, backend=backend, network=network, task=TaskConfig(
@@ -452,6 +453,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt-ms", type=float, default=None,
                     help="network clock step, ms (default 0.25, what every preset was searched with; e.g. 0.1 to "
                          "check that a count does not depend on the step)")
+    ap.add_argument("--network", type=Path, default=None, metavar="FILE",
+                    help="the network as data: a TOML or JSON file of NetworkConfig fields (see `jaxarm train "
+                         "--help`); every preset was searched on the paper's network")
+    ap.add_argument("--network-scale", type=int, default=None, metavar="F",
+                    help="every population F times larger by the original's scaling rules (NetworkConfig.scaled)")
     ap.add_argument("--no-progress", action="store_true")
     parallel.add_arguments(ap)
     ap.add_argument("--list-presets", action="store_true", help="list the presets, one per line, name first; exit")
@@ -494,13 +500,14 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         preset = None if args.preset is None else preset_lib.load(args.preset, args.preset_dir)
         targets = None if args.targets is None else [t.strip() for t in args.targets.split(",") if t.strip()]
         from jaxarm.experiment import _parse_overrides
+        from jaxarm.run import network_config as network_config_of
 
         overrides = _parse_overrides(args.overrides)
         table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
                           overrides=overrides,
                           epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
                           backend=args.backend, progress=not args.no_progress, dt_ms=args.dt_ms,
-                          preset_dir=args.preset_dir,
+                          preset_dir=args.preset_dir, network=network_config_of(args),
                           command=shlex.join(["jaxarm", "reproduce", *argv]))
     except ConfigError as e:
         print(f"jaxarm reproduce: {e}", file=sys.stderr)
