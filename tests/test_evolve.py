@@ -220,6 +220,7 @@ def test_all_failed_generation_does_not_crash():
     assert np.all(np.isfinite(np.asarray(state.strategy.mean)))
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_common_and_independent_seeds():
     """Common seeds give every candidate of a generation the same keys (pure-noise fitness: all equal)."""
 

@@ -238,6 +238,7 @@ def test_every_shipped_preset_loads_and_is_within_bounds():
             assert p.provenance.get("command") and "seed" in p.provenance
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_a_one_target_preset_reproduces_its_target_by_default(tmp_path, preset_dir):
     """A preset tuned for one target (a one-target search or re-ranking) runs that target when --targets is not
     given; a target it was not tuned for is run when asked, with a note saying so."""
@@ -304,6 +305,7 @@ def test_musculoskeletal_reproduce_with_the_shipped_preset_then_retest(tmp_path)
     assert again["networks"] == seeds["networks"]
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     """Without --preset, each (target, mode) runs the preset, epochs and settings of the README's headline row
     (read from the shipped preset files), says so first, and the table records it with the paper's measures."""
