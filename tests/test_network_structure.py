@@ -323,6 +323,14 @@ def test_network_config_round_trips_through_toml_and_json_and_names_bad_fields(t
         NetworkConfig.load(tmp_path / "bad.toml")
     with pytest.raises(ConfigError, match="--network-scale 0: must be an integer in"):
         network_config(argparse.Namespace(network=None, network_scale=0))
+    # `jaxarm evolve --network FILE --dt-ms 0.5`: the fitness builds its networks from the file, at that step
+    from jaxarm.evolve.cli import _network
+    from jaxarm.evolve.fitness import FitnessOptions
+
+    net = _network(argparse.Namespace(network=tmp_path / "net.toml", network_scale=None))
+    assert net == big and _network(argparse.Namespace(network=None, network_scale=None)) is None
+    options = FitnessOptions(arm="simple", targets=("left",), network=net, dt_ms=0.25)
+    assert options.network_config() == dataclasses.replace(big, dt_ms=0.25)
 
 
 @pytest.mark.slow

@@ -49,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt-ms", type=float, default=None,
                     help="network clock step, ms (default 0.25); reproduce the found sets with the same "
                          "`jaxarm reproduce --dt-ms`")
+    ap.add_argument("--network", type=Path, default=None, metavar="FILE",
+                    help="the network as data: a TOML or JSON file of NetworkConfig fields (see `jaxarm train "
+                         "--help`); reproduce the found sets with the same `jaxarm reproduce --network`")
+    ap.add_argument("--network-scale", type=int, default=None, metavar="F",
+                    help="every population F times larger by the original's scaling rules (NetworkConfig.scaled)")
     ap.add_argument("--strategy", default="CMA_ES", help="evosax strategy (default CMA_ES; SimpleGA for a GA; "
                                                           "see --list-strategies)")
     ap.add_argument("--population", type=int, default=16, help="candidates per generation (default 16)")
@@ -118,9 +123,10 @@ def evolve_main(argv: list[str] | None = None) -> int:
             missing = [k for k, v in d.items() if v is None]
             if missing:
                 raise ConfigError(f"--{what}: {missing[0]!r} needs a value (name=value)")
+        network = _network(args)
         options = fitness_registry.FitnessOptions(
             arm=args.arm, targets=tuple(t.strip() for t in args.targets.split(",") if t.strip()),
-            train_s=args.train_s, dt_ms=args.dt_ms)
+            train_s=args.train_s, dt_ms=args.dt_ms, network=network)
         fitness = fitness_registry.build(args.fitness, options)
         search = [s.strip() for s in args.search.split(",") if s.strip()] or None
         ignored = [n for n in fitness.ignores if n not in freeze]   # searched or frozen by default alike
@@ -142,6 +148,8 @@ def evolve_main(argv: list[str] | None = None) -> int:
                 "network_seconds_per_eval": fitness.network_seconds_per_eval}
         if options.dt_ms is not None:   # recorded only when given, so searches from before --dt-ms still resume
             meta["dt_ms"] = options.dt_ms
+        if network is not None:         # the same: only a network other than the paper's is recorded
+            meta["network"] = network.to_dict(changed_only=True)
         if args.max_chunks is not None and args.max_chunks < 1:
             raise ConfigError(f"--max-chunks = {args.max_chunks}: must be >= 1")
         if args.reevaluate_seeds < 0:
@@ -159,7 +167,7 @@ def evolve_main(argv: list[str] | None = None) -> int:
         if args.reevaluate_seeds and (args.reevaluate_train_s is not None or re_targets != options.targets):
             re_train_s = args.reevaluate_train_s if args.reevaluate_train_s is not None else options.train_s
             reevaluate_fitness = fitness_registry.build(args.fitness, fitness_registry.FitnessOptions(
-                arm=options.arm, targets=re_targets, train_s=re_train_s, dt_ms=options.dt_ms))
+                arm=options.arm, targets=re_targets, train_s=re_train_s, dt_ms=options.dt_ms, network=network))
             reevaluate_meta = {"train_s": re_train_s,
                                "network_seconds_per_eval": reevaluate_fitness.network_seconds_per_eval}
             if re_targets != options.targets:
@@ -181,3 +189,15 @@ def main() -> int:   # python -m jaxarm.evolve.cli
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def _network(args):
+    """The NetworkConfig of ``--network`` / ``--network-scale`` (without ``--dt-ms``, which FitnessOptions keeps
+    apart so searches from before these options still resume), or None: the paper's network."""
+    from jaxarm.network import NetworkConfig
+    from jaxarm.run import network_config
+
+    if args.network is None and args.network_scale is None:
+        return None
+    net = network_config(argparse.Namespace(network=args.network, network_scale=args.network_scale))
+    return None if net == NetworkConfig() else net

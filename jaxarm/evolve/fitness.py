@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -58,12 +58,24 @@ class FitnessOptions:
         train_s: simulated training length per evaluation, s (short for a fast proxy; the paper's protocol is
             12 epochs x 30 s = 360 s), or ``None`` to train for the candidate's own ``epochs`` x 30 s.
         dt_ms: the network's clock step, ms, or ``None`` for NetworkConfig's default (0.25 ms).
+        network: the NetworkConfig the networks are built from (``--network``, ``--network-scale``), or ``None`` for
+            the paper's; ``dt_ms``, when given, replaces its clock step.
     """
 
     arm: str = "musculoskeletal"
     targets: tuple[str, ...] = ("left", "bottom")
     train_s: float | None = None
     dt_ms: float | None = None
+    network: Any = None
+
+    def network_config(self):
+        """The networks' NetworkConfig: ``network`` (or the default) with ``dt_ms`` when given."""
+        import dataclasses
+
+        from jaxarm.config.network import NetworkConfig
+
+        net = self.network or NetworkConfig()
+        return net if self.dt_ms is None else dataclasses.replace(net, dt_ms=self.dt_ms)
 
     def __post_init__(self):
         from jaxarm.task.config import TARGET_ANGLES_RAD   # light (no JAX work)

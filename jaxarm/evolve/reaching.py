@@ -30,7 +30,6 @@ import jax.numpy as jnp
 
 from jaxarm.evolve import fitness
 from jaxarm.loop import LoopConfig
-from jaxarm.network import NetworkConfig
 from jaxarm.task.config import TaskConfig
 
 EPOCH_S = 30.0
@@ -87,7 +86,7 @@ def make_reaching(options: fitness.FitnessOptions, per_target=_authors_distance,
     from jaxarm.train import make_train
 
     train_s = 360.0 if options.train_s is None else float(options.train_s)
-    network = NetworkConfig() if options.dt_ms is None else NetworkConfig(dt_ms=options.dt_ms)
+    network = options.network_config()
     fns = [make_train(LoopConfig(arm=options.arm, network=network, task=_task(t, train_s))) for t in options.targets]
 
     radius_m = fns[0].loop.config.task.success_radius_m
