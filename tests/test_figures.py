@@ -114,22 +114,29 @@ def test_video_of_a_1s_test_decodes_to_the_frames_and_size_asked(run, tmp_path, 
         assert msg in capsys.readouterr().err
 
 
+@pytest.fixture(scope="module")
+def ms_run(tmp_path_factory):
+    """Two musculoskeletal-arm networks, one 0.1 s epoch, a 0.5 s test, spikes (and muscles) recorded."""
+    run = tmp_path_factory.mktemp("ms") / "run"
+    assert main(["train", "--arm", "musculoskeletal", "--networks", "2", "--epochs", "1", "--epoch-s", "0.1",
+                 "--test-s", "0.5", "--out", str(run), "--no-progress", "--record-spikes"]) == 0
+    return run
+
+
 @pytest.mark.slow
-def test_musculoskeletal_run_draws_its_muscles(tmp_path):
+def test_musculoskeletal_run_draws_its_muscles(ms_run, tmp_path):
     """The musculoskeletal arm's run writes muscles.npz; figures draws it and the video draws its 22 paths."""
     import imageio.v2 as imageio
 
-    run = tmp_path / "ms"
-    assert main(["train", "--arm", "musculoskeletal", "--networks", "2", "--epochs", "1", "--epoch-s", "0.1",
-                 "--test-s", "0.3", "--out", str(run), "--no-progress", "--record-spikes"]) == 0
+    run = ms_run
     assert main(["figures", str(run), "--out", str(tmp_path / "f"), "--network", "1"]) == 0
     data = np.load(tmp_path / "f" / "muscles.npz")
-    assert data["activation"].shape == (30, 22) and len(data["muscle_names"]) == 22
+    assert data["activation"].shape == (50, 22) and len(data["muscle_names"]) == 22
     rec = np.load(run / "muscles.npz")
     np.testing.assert_array_equal(data["force_n"], rec["test.force_n"][1])
     assert main(["video", str(run), "--out", str(tmp_path / "m.mp4"), "--fps", "10", "--size", "320x180",
                  "--no-progress"]) == 0
-    assert sum(1 for _ in imageio.get_reader(tmp_path / "m.mp4")) == 3
+    assert sum(1 for _ in imageio.get_reader(tmp_path / "m.mp4")) == 5
 
 
 def _mujoco_video(run, out, gl):
@@ -144,14 +151,12 @@ def _mujoco_video(run, out, gl):
 
 
 @pytest.mark.slow
-def test_mujoco_renders_the_musculoskeletal_arm_where_it_can(tmp_path):
+def test_mujoco_renders_the_musculoskeletal_arm_where_it_can(ms_run, tmp_path):
     """--renderer mujoco: frames of the MJCF arm (egl or osmesa); where neither renders offscreen, the command says so
     in one line and exits 2, and the test is skipped with that line."""
     import imageio.v2 as imageio
 
-    run = tmp_path / "ms"
-    assert main(["train", "--arm", "musculoskeletal", "--networks", "1", "--epochs", "1", "--epoch-s", "0.1",
-                 "--test-s", "0.5", "--out", str(run), "--no-progress", "--record-spikes"]) == 0
+    run = ms_run
     for gl in ("egl", "osmesa"):
         proc = _mujoco_video(run, tmp_path / "mj.mp4", gl)
         if proc.returncode == 0:
