@@ -33,9 +33,10 @@ def make_net(kernel: str) -> Network:
     return Network(NetworkConfig(dt_ms=0.5, kernel=kernel))
 
 
-@pytest.fixture(scope="module", params=["xla", "native"])
+@pytest.fixture(scope="module", params=[pytest.param("xla", marks=pytest.mark.slow), "native"])
 def net(request):
-    """Every test runs on both kernels."""
+    """Every test runs on both kernels (the XLA kernel's in the slow suite: the default suite's 8-minute budget; the
+    XLA kernel is checked against the native one in the default suite by tests/test_native_kernel.py)."""
     return make_net(request.param)
 
 
