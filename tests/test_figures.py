@@ -161,7 +161,8 @@ def test_mujoco_renders_the_musculoskeletal_arm_where_it_can(ms_run, tmp_path):
         proc = _mujoco_video(run, tmp_path / "mj.mp4", gl)
         if proc.returncode == 0:
             break
-        assert proc.returncode == 2 and "cannot render offscreen" in proc.stderr, proc.stderr[-2000:]
+        assert proc.returncode == 2 and ("cannot render offscreen" in proc.stderr
+                                         or "cannot be imported with MUJOCO_GL" in proc.stderr), proc.stderr[-2000:]
         assert len(proc.stderr.strip().splitlines()[-1]) < 400
     else:
         pytest.skip(f"MuJoCo cannot render offscreen here: {proc.stderr.strip().splitlines()[-1]}")
