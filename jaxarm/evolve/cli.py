@@ -183,14 +183,6 @@ def evolve_main(argv: list[str] | None = None) -> int:
     return 0 if result.finished or args.max_chunks is not None else 1
 
 
-def main() -> int:   # python -m jaxarm.evolve.cli
-    return evolve_main(sys.argv[1:])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
-
-
 def _network(args):
     """The NetworkConfig of ``--network`` / ``--network-scale`` (without ``--dt-ms``, which FitnessOptions keeps
     apart so searches from before these options still resume), or None: the paper's network."""
@@ -201,3 +193,11 @@ def _network(args):
         return None
     net = network_config(argparse.Namespace(network=args.network, network_scale=args.network_scale))
     return None if net == NetworkConfig() else net
+
+
+def main() -> int:   # python -m jaxarm.evolve.cli
+    return evolve_main(sys.argv[1:])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
