@@ -36,7 +36,7 @@ from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, LoopConfig
 from jaxarm.network import NetworkConfig
 from jaxarm.network.wiring import PATHWAYS
-from jaxarm.run import Run, SetsRun, network_config
+from jaxarm.run import Run, SetsRun, add_network_arguments, network_config
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
 from jaxarm.train import Trained
 
@@ -278,13 +278,7 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
                     help="train and test with this metaparameter changed from the authors' value (repeatable; "
                          "e.g. v_em_max=60); the training length is --epochs")
-    ap.add_argument("--network", type=Path, default=None, metavar="FILE",
-                    help="the network as data: a TOML or JSON file of NetworkConfig fields (sizes, pmat_scale, "
-                         "p_positions, ...; the others keep their defaults; NetworkConfig.save writes one); the "
-                         "options below override it")
-    ap.add_argument("--network-scale", type=int, default=None, metavar="F",
-                    help="every population F times larger by the original's scaling rules (NetworkConfig.scaled: "
-                         "in-degrees, P code and readout drive kept; docs/model.md)")
+    add_network_arguments(ap, "; the options below override it")
     ap.add_argument("--dt-ms", type=float, default=None,
                     help=f"network clock step, ms (default {NetworkConfig().dt_ms}; must divide 1 ms, e.g. 0.1 to "
                          "check that a result does not depend on the step)")

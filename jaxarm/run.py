@@ -78,11 +78,23 @@ def network_config(source) -> NetworkConfig:
     base = NetworkConfig.load(source.network) if getattr(source, "network", None) else NetworkConfig()
     scale = getattr(source, "network_scale", None)
     if scale is not None:
-        if not 1 <= scale <= 100:
-            raise ConfigError(f"--network-scale {scale}: must be an integer in [1, 100]")
-        base = base.scaled(scale)
+        try:
+            base = base.scaled(scale)
+        except ConfigError:
+            raise ConfigError(f"--network-scale {scale}: must be an integer in [1, 100]") from None
     options = {k: getattr(source, k, None) for k in NETWORK_OPTIONS}
     return dataclasses.replace(base, **{k: v for k, v in options.items() if v is not None})
+
+
+def add_network_arguments(ap, note: str = "") -> None:
+    """``--network FILE`` and ``--network-scale F`` (read by :func:`network_config`); ``note`` ends the first's
+    help."""
+    ap.add_argument("--network", type=Path, default=None, metavar="FILE",
+                    help="the network as data: a TOML or JSON file of NetworkConfig fields (sizes, pmat_scale, "
+                         "p_positions, ...; the others keep their defaults; NetworkConfig.save writes one)" + note)
+    ap.add_argument("--network-scale", type=int, default=None, metavar="F",
+                    help="every population F times larger by the original's scaling rules (NetworkConfig.scaled: "
+                         "in-degrees, P code and readout drive kept; docs/model.md)")
 
 
 class Batch:

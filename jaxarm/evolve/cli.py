@@ -36,6 +36,8 @@ def _pairs(text: str, what: str) -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from jaxarm.run import add_network_arguments
+
     ap = argparse.ArgumentParser(prog="jaxarm evolve", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, help="output folder (checkpoints, history.json, top_k.json, convergence.png);"
@@ -49,11 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt-ms", type=float, default=None,
                     help="network clock step, ms (default 0.25); reproduce the found sets with the same "
                          "`jaxarm reproduce --dt-ms`")
-    ap.add_argument("--network", type=Path, default=None, metavar="FILE",
-                    help="the network as data: a TOML or JSON file of NetworkConfig fields (see `jaxarm train "
-                         "--help`); reproduce the found sets with the same `jaxarm reproduce --network`")
-    ap.add_argument("--network-scale", type=int, default=None, metavar="F",
-                    help="every population F times larger by the original's scaling rules (NetworkConfig.scaled)")
+    add_network_arguments(ap, "; reproduce the found sets with the same `jaxarm reproduce --network`")
     ap.add_argument("--strategy", default="CMA_ES", help="evosax strategy (default CMA_ES; SimpleGA for a GA; "
                                                           "see --list-strategies)")
     ap.add_argument("--population", type=int, default=16, help="candidates per generation (default 16)")

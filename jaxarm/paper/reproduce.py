@@ -28,6 +28,7 @@ tables are printed, the second in Markdown (:func:`results_markdown`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import shlex
@@ -72,8 +73,6 @@ def _finished(run) -> dict | None:
     res = json.loads(path.read_text())
     want = json.loads(json.dumps({"loop": _jsonable(asdict(run.config)), **run.meta()}))
     return res if _comparable(res.get("config")) == _comparable(want) else None
-
-
 
 
 def _comparable(config):
@@ -254,10 +253,10 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
                                                  "(only its best set is known)" for t in targets}
 
     from jaxarm.network import NetworkConfig
-    from jaxarm.run import network_config
 
-    network = network_config((network or NetworkConfig()).to_dict(changed_only=True)
-                             | ({"dt_ms": dt_ms} if dt_ms is not None else {}))
+    network = network or NetworkConfig()
+    if dt_ms is not None:
+        network = dataclasses.replace(network, dt_ms=dt_ms)
 
     def config(target, n_epochs):
         return LoopConfig(arm=arm, backend=backend, network=network, task=TaskConfig(
@@ -429,6 +428,8 @@ def format_table(table: dict) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from jaxarm.run import add_network_arguments
+
     ap = argparse.ArgumentParser(prog="jaxarm reproduce", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), help="arm (required for a reproduction)")
@@ -453,11 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt-ms", type=float, default=None,
                     help="network clock step, ms (default 0.25, what every preset was searched with; e.g. 0.1 to "
                          "check that a count does not depend on the step)")
-    ap.add_argument("--network", type=Path, default=None, metavar="FILE",
-                    help="the network as data: a TOML or JSON file of NetworkConfig fields (see `jaxarm train "
-                         "--help`); every preset was searched on the paper's network")
-    ap.add_argument("--network-scale", type=int, default=None, metavar="F",
-                    help="every population F times larger by the original's scaling rules (NetworkConfig.scaled)")
+    add_network_arguments(ap, "; every preset was searched on the paper's network")
     ap.add_argument("--no-progress", action="store_true")
     parallel.add_arguments(ap)
     ap.add_argument("--list-presets", action="store_true", help="list the presets, one per line, name first; exit")

@@ -38,20 +38,19 @@ class MujocoArmRenderer:
     """Frames of the MJCF arm, ``(height, width, 3)`` uint8, at joint angles q (rad) with muscle activations a.
 
     Args:
-        muscle_names (Sequence[str]): the run's muscles, in the order of the activations given to :meth:`frame`.
-        segments_m (tuple[float, float]): the planar arm's (upper arm, forearm) lengths, m: the frame the target
-            and hand are given in.
+        projector (MuscleProjector): the run's muscles (in the order of the activations given to :meth:`frame`)
+            and the map from the model's frame to the planar one the target and hand are given in.
         width (int): the image's width in pixels.
         height (int): the image's height in pixels.
         target_m (ArrayLike): the target's centre (planar, m).
         radius_m (float): the target's success radius, m.
     """
 
-    def __init__(self, muscle_names, segments_m, width: int, height: int, target_m, radius_m: float):
+    def __init__(self, projector: MuscleProjector, width: int, height: int, target_m, radius_m: float):
         import mujoco
 
         self.mujoco = mujoco
-        self.projector = MuscleProjector(muscle_names, segments_m)
+        self.projector = projector
         lin = self.projector.map[:3]                                       # planar = x3 @ lin + offset
         # lin's columns lie in the plane of motion (the least-squares map's minimum-norm solution), so
         # lift = lin (lin^T lin)^-1 carries a planar displacement to the 3-D one in that plane.
@@ -63,7 +62,7 @@ class MujocoArmRenderer:
         normal = _unit(np.cross(ex, ey))
         ey = np.cross(normal, ex)                                          # exactly orthonormal
         # The view holds the matplotlib renderer's box, x in [-reach, reach], y in [-0.15, reach] (planar, m).
-        reach = float(sum(segments_m)) + 0.05
+        reach = float(sum(projector.segments_m)) + 0.05
         centre = self.to3d([0.0, (reach - 0.15) / 2])
         fovy_deg = 45.0
         half_height = 1.05 * max((reach + 0.15) / 2, reach * height / width)

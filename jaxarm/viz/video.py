@@ -44,6 +44,7 @@ class MuscleProjector:
 
         from jaxarm.arm.geometry import load_mjmodel, tendon_names
 
+        self.segments_m = tuple(segments_m)
         self.mujoco = mujoco
         self.model = load_mjmodel()
         self.data = mujoco.MjData(self.model)
@@ -200,10 +201,10 @@ def make_video(run: RunFolder, out: Path, network: int = 0, fps: float = 30.0, s
                 k = int(np.searchsorted(t_arm, t, side="right"))
                 path = np.vstack([hand[:k], _interp(t, t_arm, hand)[None]])
                 trace.set_data(path[:, 0], path[:, 1])
+                wam_joints = None if wam is None else planar_joints(_interp(t, wam[0], wam[1]), segments)
                 if mj is not None:
                     render, image, activation, t_act = mj
                     a = np.zeros(len(render.tendons)) if activation is None else _interp(t, t_act, activation)
-                    wam_joints = None if wam is None else planar_joints(_interp(t, wam[0], wam[1]), segments)
                     image.set_data(render.frame(qt, a, path, wam_joints))
                     joints = planar_joints(qt, segments)
                 elif muscles is not None:
@@ -217,9 +218,8 @@ def make_video(run: RunFolder, out: Path, network: int = 0, fps: float = 30.0, s
                 else:
                     joints = planar_joints(qt, segments)
                 bones.set_data(joints[:, 0], joints[:, 1])
-                if wam is not None:
-                    wj = planar_joints(_interp(t, wam[0], wam[1]), segments)
-                    wam[2].set_data(wj[:, 0], wj[:, 1])
+                if wam_joints is not None:
+                    wam[2].set_data(wam_joints[:, 0], wam_joints[:, 1])
                 dist = np.linalg.norm(path[-1] - target)
                 title.set_text(f"{run.label}\nnetwork {network}{' (naive)' if naive else ''}, t = {t:.2f} s, "
                                f"{dist * 100:.1f} cm from the target")
@@ -253,17 +253,16 @@ def _mujoco_panel(run: RunFolder, ax_arm, muscles, segments, target, radius):
 
     if muscles is not None:
         projector, activation, t_act, _, _ = muscles
-        names = [projector.model.tendon(i).name for i in projector.tendons]
     else:
         from jaxarm.arm.geometry import load_mjmodel, tendon_names
 
-        names, activation, t_act = list(tendon_names(load_mjmodel())), None, None
+        projector, activation, t_act = MuscleProjector(tendon_names(load_mjmodel()), segments), None, None
     ax_arm.set_aspect("auto")                              # the image fills its panel (pixels = panel's pixels),
     pos = ax_arm.get_position()                            # less room for the title
     ax_arm.set_position([pos.x0, pos.y0, pos.width, pos.height * 0.9])
     box = ax_arm.get_window_extent()
     w, h = int(box.width) // 2 * 2, int(box.height) // 2 * 2
-    render = MujocoArmRenderer(names, segments, w, h, target, radius)
+    render = MujocoArmRenderer(projector, w, h, target, radius)
     for artist in list(ax_arm.patches) + list(ax_arm.lines):
         artist.set_visible(False)
     ax_arm.set_xlim(-0.5, w - 0.5)
