@@ -31,7 +31,9 @@ import numpy as np
 
 from jaxarm import parallel
 from jaxarm.analysis.reach import reach_metrics
+from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.validate import ConfigError
+from jaxarm.learning.gradient import differentiable_config
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import POP_NAMES, LoopConfig
 from jaxarm.network import NetworkConfig
@@ -259,7 +261,11 @@ def _configs(args) -> list[tuple[str, LoopConfig]]:
     for target in args.target:
         task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
                           test_duration_s=args.test_s, test_em_noise_events=args.test_em_noise_events)
-        out.append((target, LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task)))
+        cfg = LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task)
+        if getattr(args, "learning", "rstdp") == "gradient":
+            cfg = differentiable_config(cfg, GradientConfig(learning_rate=args.gradient_lr, reach_s=args.reach_s,
+                                                            params=args.gradient_params))
+        out.append((target, cfg))
     return out
 
 
@@ -289,6 +295,18 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-readout-clip", dest="readout_clip", action="store_const", const=False, default=None,
                     help="do not clip the motor excitations to [0, 1] (the hoc code does not; the default clips, as "
                          "the paper's thresholded readout and every published preset; NetworkConfig.readout_clip)")
+    g = ap.add_argument_group("learning")
+    g.add_argument("--learning", choices=("rstdp", "gradient"), default="rstdp",
+                   help="rstdp (default): reward-modulated STDP with babbling, the paper's; gradient: Adam on the mean "
+                        "hand-target distance of 1 s reaches, through surrogate spikes and the arm, with the same "
+                        "network-seconds (docs/gradients.md)")
+    default = GradientConfig()
+    g.add_argument("--gradient-lr", type=float, default=default.learning_rate, metavar="LR",
+                   help=f"gradient learning: Adam's step size, per unit gain (default {default.learning_rate})")
+    g.add_argument("--reach-s", type=float, default=default.reach_s, metavar="S",
+                   help=f"gradient learning: length of one training reach (one step), s (default {default.reach_s:g})")
+    g.add_argument("--gradient-params", choices=("plastic", "all"), default=default.params,
+                   help="gradient learning: the gains trained: plastic (those R-STDP trains, default) or all")
     add_record_arguments(ap, train=True)
     parallel.add_arguments(ap)
     args = ap.parse_args(argv)
@@ -396,6 +414,8 @@ def test_main(argv: list[str] | None = None) -> int:
     network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
                              | ({"crossing": args.crossing} if args.crossing else {}))
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
+    if "learning" in meta:   # trained by gradient: the same network forward, its checkpoint holds Adam's state too
+        cfg = differentiable_config(cfg, GradientConfig(**meta["learning"]))
     out = args.out or args.src / "test"
     try:
         if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)

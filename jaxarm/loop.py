@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.batching import when_any
+from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.network import NetworkConfig
 from jaxarm.config.validate import ConfigError, check_choice
 from jaxarm.learning import babbling as bab
@@ -58,6 +59,12 @@ class LoopConfig:
         reseed_noise_each_epoch: False (the original) restarts the background-noise streams identically at every
             epoch; True draws fresh streams per epoch.
         plasticity: False freezes the weights in training (babbling still runs): a control condition.
+        gradient: None (default): training is R-STDP with babbling, the paper's; a
+            :class:`~jaxarm.config.gradient.GradientConfig`: the gains are trained by gradient descent through the
+            loop instead (:mod:`jaxarm.learning.gradient`; build it with
+            :func:`jaxarm.learning.gradient.differentiable_config`).
+        smooth_arm: the musculoskeletal arm's C-infinity formulation (``make_arm(..., smooth=True)``), for
+            gradients through the loop (``docs/gradients.md``); the simple arm is smooth already.
         critic_error: what the critic compares 10 ms apart: "xy" (the original's training setting, XYERR: the
             hand-target distance, m, 1 mm threshold) or "angle" (not what the original trained with: the joint-space
             distance to the target posture, rad, sqrt(d_shoulder^2 + d_elbow^2), with the same numeric threshold,
@@ -74,12 +81,16 @@ class LoopConfig:
     reseed_noise_each_epoch: bool = False
     plasticity: bool = True
     critic_error: str = "xy"
+    smooth_arm: bool = False
+    gradient: GradientConfig | None = None
 
     def __post_init__(self):
         check_choice(self, "arm", ARMS)
         check_choice(self, "critic_error", ("xy", "angle"))
         check_choice(self, "backend", ("fast", "mjx"))
-        for name in ("reseed_noise_each_epoch", "plasticity"):
+        if self.gradient is not None and not isinstance(self.gradient, GradientConfig):
+            raise ConfigError(f"LoopConfig.gradient = {self.gradient!r}: must be None or a GradientConfig")
+        for name in ("reseed_noise_each_epoch", "plasticity", "smooth_arm"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"LoopConfig.{name} = {getattr(self, name)!r}: must be True or False")
         if abs(self.network.interface_ms - 1000.0 * self.task.update_interval_s) > 1e-9:
@@ -130,7 +141,8 @@ class ClosedLoop:
 
         self.config = config
         self.net = Network(config.network)
-        self.arm = make_arm(config.arm, backend=config.backend)
+        self.arm = make_arm(config.arm, backend=config.backend,
+                            smooth=config.smooth_arm and config.arm == "musculoskeletal")
         arm_dt_ms = self.arm.dt_s * 1000.0
         self.arm_steps = int(round(config.network.interface_ms / arm_dt_ms))
         if abs(self.arm_steps * arm_dt_ms - config.network.interface_ms) > 1e-6:
@@ -215,8 +227,15 @@ class ClosedLoop:
         None) instead of (state, IntervalRecord); the state and record are the same either way."""
         c = self.config
         counts_before = state.net.spike_count
-        net, spikes = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval, collect=record)
-        em_counts = ro.em_group_counts(c.network, net.spike_count - counts_before)
+        if self.net.differentiable:
+            # float32 spikes with a surrogate derivative: the counts are the same numbers, and differentiable
+            net, spikes = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval)
+            em_counts = ro.em_group_counts(c.network, jnp.sum(spikes, axis=0))
+            spikes = spikes > 0.5
+        else:
+            net, spikes = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval,
+                                       collect=record)
+            em_counts = ro.em_group_counts(c.network, net.spike_count - counts_before)
         readout = ro.push(state.readout, em_counts)
         # The loop's clock counts whole intervals (an integer), so its times are exact multiples of interface_ms
         # whatever the network's dt (float32(step) * dt is not exact for dt = 0.1 ms).

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from dataclasses import asdict
 import sys
 import time
 from pathlib import Path
@@ -140,7 +141,8 @@ class Batch:
 
     # -- identity -------------------------------------------------------------------------------------------------
     def meta(self) -> dict:
-        return self.description | self.network_meta()
+        learning = {} if self.config.gradient is None else {"learning": asdict(self.config.gradient)}
+        return self.description | self.network_meta() | learning
 
     def network_meta(self) -> dict:
         """The run's NetworkConfig fields that differ from the defaults (only those are recorded, so folders

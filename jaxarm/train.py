@@ -84,12 +84,22 @@ class TrainFns(NamedTuple):
     #: last train_last_s seconds); carry and summary equal ``epoch``'s
     epoch_recorded: Callable | None = None
     record: Any = None        # the RecordConfig (static), or None: nothing recorded, the loop compiled without it
+    #: gradient learning only (``LoopConfig.gradient``): (carry, mp, target, k) -> (carry, (StepSummary, counts)),
+    #: the k-th gradient step (jaxarm.learning.gradient)
+    step: Callable | None = None
 
 
 def _pop_rates(loop: ClosedLoop, counts, seconds):
     pops = loop.pops
     return jnp.stack([jnp.sum(counts[..., pops.slice(p)], axis=-1) / (loop.config.network.size(p) * seconds)
                       for p in POP_NAMES])
+
+
+def mean_gain_per_pathway(layout, wgain):
+    """(n_pathways,) mean gain of each pathway's synapses."""
+    pathway_of = jnp.asarray(layout.pathway_of_synapse())
+    return jax.ops.segment_sum(wgain, pathway_of, num_segments=len(layout.in_degree)) / jnp.asarray(
+        [layout.config.size(pw.post) * layout.in_degree[pw.name] for pw in _pathways()], jnp.float32)
 
 
 def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
@@ -108,17 +118,21 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
         ``config.task.epochs`` epochs under ``lax.scan``) and ``test(key, trained, mp[, target])`` (the 1 s test
         without learning). ``key`` is a JAX PRNG key (a network's wiring, noise and babbling), ``mp`` a
         :class:`~jaxarm.learning.metaparams.MetaParams` (each field in its own unit: ms, Hz or dimensionless).
-        Each is pure: ``jit`` it and ``vmap`` it over keys (networks), metaparameter sets or targets.
+        Each is pure: ``jit`` it and ``vmap`` it over keys (networks), metaparameter sets or targets. With
+        ``config.gradient`` set, the same functions train by gradient descent instead of R-STDP
+        (:mod:`jaxarm.learning.gradient`).
     """
     from jaxarm import record as rec_mod
+
+    if config.gradient is not None:
+        from jaxarm.learning.gradient import make_gradient_train
+        return make_gradient_train(config, record)
 
     loop = ClosedLoop(config)
     net, task = loop.net, config.task
     n_intervals = task.epoch_steps
     last10_intervals = min(n_intervals, round(10.0 / task.update_interval_s))
     layout = net.layout
-    n_pw = len(layout.in_degree)
-    pathway_of = jnp.asarray(layout.pathway_of_synapse())
 
     def init(key) -> EpochCarry:
         k_wire, k_noise, k_babble = jax.random.split(key, 3)
@@ -192,8 +206,7 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
         counts = state.net.spike_count
         dist = jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1)
         wgain = state.net.wgain
-        mean_w = jax.ops.segment_sum(wgain, pathway_of, num_segments=n_pw) / jnp.asarray(
-            [layout.config.size(pw.post) * layout.in_degree[pw.name] for pw in _pathways()], jnp.float32)
+        mean_w = mean_gain_per_pathway(layout, wgain)
         summary = EpochSummary(
             rates_hz=_pop_rates(loop, counts, task.epoch_duration_s),
             rates_last10s_hz=_pop_rates(loop, counts - counts_mid, last10_intervals * task.update_interval_s),

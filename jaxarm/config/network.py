@@ -16,7 +16,7 @@ from jaxarm.config.validate import ConfigError, check_choice, check_interval, ch
 #: Population names in the order of the original's global cell ids (col.hoc mkcells, spec §2).
 POPULATIONS = ("ES", "IS", "ISL", "EM", "IM", "IML", "P")
 #: NetworkConfig fields that choose how the network is computed, not what it is (never part of a run's identity).
-RUNTIME_FIELDS = ("kernel", "native_threads")
+RUNTIME_FIELDS = ("kernel", "native_threads", "spike_gradient", "surrogate_width_mv", "surrogate_scale")
 
 
 def _is_multiple(x: float, step: float) -> bool:
@@ -97,6 +97,14 @@ class NetworkConfig:
             backend when it builds, else xla. Same model and state layout; results agree to float rounding.
         native_threads: threads the native kernel splits a batch of networks over (default: $JAXARM_NATIVE_THREADS,
             else 1 = the calling thread only). Changes speed, never results (each network is computed by one thread).
+        spike_gradient: "none" (default): spikes have no derivative and delivery uses spike lists; "fast_sigmoid":
+            the same spikes on the forward pass, a surrogate derivative of the threshold on the backward pass
+            (``jaxarm.network.surrogate``) and dense delivery (every cell's row, scaled by its spike), so gradients
+            of anything the network drives reach its weights. XLA kernel only; it changes how, not what: forward
+            spikes are bit for bit those of ``kernel="xla"``.
+        surrogate_width_mv: width w of the surrogate derivative, mV (only with ``spike_gradient``).
+        surrogate_scale: its dampening factor g (the derivative integrates to g over the margin); above about 0.05
+            this network's gradients explode (``jaxarm.network.surrogate``).
     """
 
     dt_ms: float = 0.25
@@ -124,6 +132,9 @@ class NetworkConfig:
     plasticity_bookkeeping: bool = True
     kernel: str = "auto"
     native_threads: int = field(default_factory=lambda: int(os.environ.get("JAXARM_NATIVE_THREADS", "1")))
+    spike_gradient: str = "none"
+    surrogate_width_mv: float = 2.0
+    surrogate_scale: float = 0.03
 
     def __post_init__(self):
         check_range(self, "dt_ms", 0.01, 1.0)
@@ -180,6 +191,12 @@ class NetworkConfig:
                               "must be True or False")
         check_choice(self, "kernel", ("auto", "native", "xla"))
         check_range(self, "native_threads", 1, 256, integer=True)
+        check_choice(self, "spike_gradient", ("none", "fast_sigmoid"))
+        check_range(self, "surrogate_width_mv", 0.01, 100.0)
+        check_range(self, "surrogate_scale", 0.0, 1.0, lo_open=True)
+        if self.spike_gradient != "none" and self.kernel == "native":
+            raise ConfigError(f"NetworkConfig.spike_gradient = {self.spike_gradient!r} needs kernel 'xla' or 'auto' "
+                              "(the native kernel has no derivative), not 'native'")
 
     def scaled(self, factor: int) -> "NetworkConfig":
         """This network with every population ``factor`` times larger, by the original's scaling rules: in-degrees

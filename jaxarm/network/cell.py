@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.config.network import NetworkConfig
+from jaxarm.network import surrogate
 from jaxarm.network.populations import Populations
 
 #: Reversal potentials relative to rest, mV (params.hoc L5-7).
@@ -140,7 +141,8 @@ def mg_block(v_abs):
 
 
 def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants,
-              sequential: bool = False, on_event: bool = False, per_event_crossing: bool = False):
+              sequential: bool = False, on_event: bool = False, per_event_crossing: bool = False,
+              surrogate_width_mv: float = 0.0, surrogate_scale: float = 1.0):
     """Advance every cell by one step and apply this step's input (summed weights, mV, each (n_cells,)).
 
     ``sequential``: the AMPA and GABA inputs are summed loads (:func:`event_load`) rather than summed weights, and
@@ -186,10 +188,14 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
         # input crossed the window (VTHC, Vblock] on the way up, where one of its events would have fired the cell
         below_block = below_block | (c.rmp + v <= c.vth + excess)
     spiked = crossed & below_block
+    out = spiked
+    if surrogate_width_mv:
+        out = surrogate.spike_value(spiked, vm - (c.vth + excess), since >= c.n_refractory, surrogate_width_mv,
+                                    surrogate_scale)
     ahp = jnp.where(spiked, ahp - c.ahpwt, ahp)
     excess = jnp.where(spiked, c.post_spike_excess, excess)
     since = jnp.where(spiked, 0, since)
-    return CellState(ampa, nmda, gaba_prox, gaba_dist, ahp, excess, since), spiked
+    return CellState(ampa, nmda, gaba_prox, gaba_dist, ahp, excess, since), out
 
 
 def membrane_potential(s: CellState, c: CellConstants):

@@ -176,7 +176,7 @@ class Network:
     @property
     def uses_native_kernel(self) -> bool:
         """Whether chunks run in the native kernel (``config.kernel``; "auto" decides when first traced)."""
-        if self.config.kernel == "xla":
+        if self.config.kernel == "xla" or self.differentiable:
             return False
         from jaxarm.network import native
         if self.config.kernel == "native":
@@ -185,6 +185,12 @@ class Network:
                                    f"{native.status()} (use kernel='auto' or 'xla')")
             return True
         return native.available()
+
+    @property
+    def differentiable(self) -> bool:
+        """Whether spikes carry a surrogate derivative (``config.spike_gradient``): XLA kernel, dense delivery,
+        float32 spikes out of :meth:`run`, and each chunk rematerialised on the backward pass."""
+        return self.config.spike_gradient != "none"
 
     def make_wiring(self, key) -> Wiring:
         return make_wiring(self.config, key)
@@ -221,7 +227,8 @@ class Network:
 
     def _cell_step(self, state: State, spike_step):
         """One clock step of every cell, reading its input from the ring (no delivery). ``spike_step``: (n_cells,)
-        step of each cell's spike in the current block (-1 none). Returns (state, spike_step, spikes (n_all,))."""
+        step of each cell's spike in the current block (-1 none). Returns (state, spike_step, spikes (n_all,)):
+        bool, or float32 with a surrogate derivative when :attr:`differentiable`."""
         c = self.config
         n = c.n_cells
         m = state.step + 1
@@ -232,15 +239,20 @@ class Network:
         cells, net_spiked = cell_mod.cell_step(
             state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
             self.cell_constants, sequential=c.event_summation == "sequential",
-            on_event=c.threshold_test == "on_event", per_event_crossing=c.crossing == "per_event")
+            on_event=c.threshold_test == "on_event", per_event_crossing=c.crossing == "per_event",
+            surrogate_width_mv=c.surrogate_width_mv if self.differentiable else 0.0, surrogate_scale=c.surrogate_scale)
         p, p_spiked = proprio_mod.p_step(state.p, m)
+        values = None
+        if self.differentiable:
+            values = jnp.concatenate([net_spiked, p_spiked.astype(jnp.float32)])
+            net_spiked = net_spiked > 0.5
         spiked = jnp.concatenate([net_spiked, p_spiked])
         state = state._replace(
             step=m, cells=cells, p=p, ring=ring, noise=noise,
             prev_spike_ms=jnp.where(spiked, state.last_spike_ms, state.prev_spike_ms),
             last_spike_ms=jnp.where(spiked, t_ms, state.last_spike_ms),
             spike_count=state.spike_count + spiked.astype(jnp.int32))
-        return state, jnp.where(net_spiked, m, spike_step), spiked
+        return state, jnp.where(net_spiked, m, spike_step), (spiked if values is None else values)
 
     @cached_property
     def block_steps(self) -> int:
@@ -256,6 +268,8 @@ class Network:
     def _block(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
         """``n_steps`` (<= block_steps) cell steps, then delivery of their spikes."""
         n = self.config.n_cells
+        if self.differentiable:
+            return self._block_dense(wiring, state, params, n_steps, collect)
 
         def body(carry, _):
             s, spike_step = carry
@@ -268,6 +282,23 @@ class Network:
             state.ring, state.pdope_ms, state.counters, spike_step, state.last_spike_ms, state.prev_spike_ms, wiring,
             state.wgain, params.max_plast_t_ms, self.delivery_shape, self.config.dt_ms)
         return state._replace(ring=ring, pdope_ms=pdope_ms, counters=counters), spikes
+
+    def _block_dense(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
+        """:meth:`_block` with surrogate spikes and dense delivery (:attr:`differentiable`); the same state."""
+        n = self.config.n_cells
+
+        def body(carry, _):
+            s, spike_step, value = carry
+            s, spike_step, spiked = self._cell_step(s, spike_step)
+            # a cell fires at most once per block: the sum is its spike, and the sum of its surrogates backward
+            return (s, spike_step, value + spiked[:n]), (spiked if collect else None)
+
+        (state, spike_step, value), spikes = jax.lax.scan(
+            body, (state, jnp.full((n,), -1, jnp.int32), jnp.zeros((n,), jnp.float32)), None, length=n_steps)
+        ring, pdope_ms = syn_mod.deliver_block_dense(
+            state.ring, state.pdope_ms, spike_step, value, state.last_spike_ms, state.prev_spike_ms, wiring,
+            state.wgain, params.max_plast_t_ms, self.delivery_shape, self.config.dt_ms)
+        return state._replace(ring=ring, pdope_ms=pdope_ms), spikes
 
     def _chunk(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
         """Write the P input of the next ``n_steps`` (<= chunk_steps) steps, then run them block by block."""
@@ -308,13 +339,18 @@ class Network:
         """``n_steps`` steps (static) by ``lax.scan`` in chunks of :attr:`chunk_steps`.
 
         Returns (state, spikes (n_steps, n_all) bool), or (state, None) with ``collect=False``. Muscle lengths
-        (:meth:`set_lengths`) and noise rates stay fixed for the whole call.
+        (:meth:`set_lengths`) and noise rates stay fixed for the whole call. When :attr:`differentiable` the
+        spikes are float32 (the same values, with a surrogate derivative) and each chunk is rematerialised on the
+        backward pass (``jax.checkpoint``), so backpropagation stores one state per chunk, not per step.
         """
         full, rest = divmod(n_steps, self.chunk_steps)
         outs = []
         if full:
             def chunk(s, _):
                 return self._chunk(wiring, s, params, self.chunk_steps, collect)
+
+            if self.differentiable:
+                chunk = jax.checkpoint(chunk)
 
             state, spikes = jax.lax.scan(chunk, state, None, length=full)
             if collect:

@@ -126,25 +126,40 @@ def _group_pass(ring, pdope_ms, remaining, steps, last_spike_ms, prev_spike_ms, 
 
     ``remaining``/``steps``: (B * n_g,) "not yet delivered" (1.0/0.0) and spike step of every cell of the group.
     Returns (ring, pdope_ms, remaining)."""
-    n = shape.n_cells
-    b, r = ring.shape
-    n_g = remaining.shape[0] // b
+    n_g = remaining.shape[0] // ring.shape[0]
     vals, flat = jax.lax.top_k(remaining, k)
     valid = vals > 0
     net = jnp.where(valid, flat // n_g, 0)
     cell = jnp.where(valid, flat % n_g, n_g)                   # n_g = the "no spike" row (weights 0)
     s = jnp.where(valid, steps[flat], 0)                        # (K,) spike step of each listed cell
+    ring, pdope_ms = _deliver_rows(ring, pdope_ms, net, cell, s, None, last_spike_ms, prev_spike_ms, wgain, window_ms,
+                                   tables, tables_batched, g, shape, dt_ms)
+    remaining = remaining.at[flat].set(0.0, mode="promise_in_bounds")
+    return ring, pdope_ms, remaining
+
+
+def _deliver_rows(ring, pdope_ms, net, cell, s, value, last_spike_ms, prev_spike_ms, wgain, window_ms,
+                  tables: GroupTables, tables_batched: bool, g: int, shape: DeliveryShape, dt_ms: float):
+    """Deliver and tag the rows ``cell`` (K,) of group ``g``'s tables, of networks ``net`` (K,), each spiking at
+    step ``s`` (K,): one scatter-add into the (B, ring) rings and one scatter-max into the (B, n_plastic) tags.
+    ``value`` (K,) float32 scales each row's weights (the spike itself, 1.0 or 0.0, carrying a surrogate
+    derivative) or is None (every listed row spiked). Returns (ring, pdope_ms)."""
+    n = shape.n_cells
+    b, r = ring.shape
     packed = _row(tables.out_packed, net, cell, tables_batched)  # (K, C) row gathers
     syn = _row(tables.out_syn, net, cell, tables_batched)
     w = _row(tables.out_weight, net, cell, tables_batched) * wgain.at[net[:, None], syn].get(mode="clip")
     if shape.sequential:
         w = event_load(w, E_AMPA if shape.excitatory[g] else -E_GABA)
+    if value is not None:
+        w = w * value[:, None]
     delay = packed & ((1 << DELAY_BITS) - 1)
     index = (net * r)[:, None] + jax.lax.rem(s[:, None] + delay, shape.n_slots) * (N_CHANNELS * n) + (
         packed >> DELAY_BITS)
     if shape.excitatory[g]:
         index = jnp.concatenate([index, index + n], axis=1)    # AMPA row then NMDA row of each spike
-        w = jnp.concatenate([w, _row(tables.out_nmda, net, cell, tables_batched)], axis=1)
+        w_nmda = _row(tables.out_nmda, net, cell, tables_batched)
+        w = jnp.concatenate([w, w_nmda if value is None else w_nmda * value[:, None]], axis=1)
     ring = ring.reshape(-1).at[index.reshape(-1)].add(w.reshape(-1), mode="promise_in_bounds").reshape(b, r)
     if shape.bookkeeping:
         p = pdope_ms.shape[-1]
@@ -154,12 +169,32 @@ def _group_pass(ring, pdope_ms, remaining, steps, last_spike_ms, prev_spike_ms, 
         prev = prev_spike_ms.at[net[:, None], pre].get(mode="fill", fill_value=NEVER_SPIKED_MS)
         last = jnp.where(last <= t_post, last, prev)          # the presynaptic spike at or before t_post
         hit = (last >= 0.0) & (t_post - last <= window_ms[net][:, None])
+        if value is not None:                                  # dense rows: only those that spiked tag
+            hit = hit & (value > 0.5)[:, None]
         tag = (net * p)[:, None] + jnp.minimum(_row(tables.in_plastic, net, cell, tables_batched), p - 1)
         pdope_ms = pdope_ms.reshape(-1).at[tag.reshape(-1)].max(
             jnp.where(hit, t_post, NO_TAG_MS).astype(jnp.float32).reshape(-1), mode="promise_in_bounds"
         ).reshape(b, p)
-    remaining = remaining.at[flat].set(0.0, mode="promise_in_bounds")
-    return ring, pdope_ms, remaining
+    return ring, pdope_ms
+
+
+def deliver_block_dense(ring, pdope_ms, spike_step, spike_value, last_spike_ms, prev_spike_ms, wiring: Wiring, wgain,
+                        window_ms, shape: DeliveryShape, dt_ms: float):
+    """:func:`deliver_block` for differentiation (``NetworkConfig.spike_gradient``), of one network (plain
+    ``vmap`` for many): every cell's row is written, its weights times its spike ``spike_value`` (n_cells,)
+    float32 (1.0 or 0.0 forward, a surrogate derivative backward), so a cell that did not fire passes on the
+    derivative of its threshold. Rows that did not fire add exact zeros and the fired rows are added in the order
+    of the spike lists (ascending cell), so the ring, and every spike after it, is bit for bit the same as with
+    spike lists. Work: every synapse of the network per block, not only those of the spikes. Returns (ring,
+    pdope_ms)."""
+    ring, pdope_ms = ring[None], pdope_ms[None]
+    for g, (tables, steps, values) in enumerate(zip(wiring.groups, _group_values(spike_step, shape),
+                                                    _group_values(spike_value, shape))):
+        cell = jnp.arange(steps.shape[-1])
+        ring, pdope_ms = _deliver_rows(ring, pdope_ms, jnp.zeros_like(cell), cell, jnp.maximum(steps, 0), values,
+                                       last_spike_ms[None], prev_spike_ms[None], wgain[None],
+                                       jnp.asarray(window_ms, jnp.float32)[None], tables, False, g, shape, dt_ms)
+    return ring[0], pdope_ms[0]
 
 
 def _deliver_batched(ring, pdope_ms, counters: Counters, spike_step, last_spike_ms, prev_spike_ms, wgain, window_ms,

@@ -1,0 +1,143 @@
+"""Gradient learning on the reaching task: the same network, arm and test as R-STDP, the gains trained by Adam on
+the reaching loss through the closed loop (network -> readout -> arm -> distance to target).
+
+    config = differentiable_config(LoopConfig(arm="simple"), GradientConfig())
+    fns = make_train(config)                        # jaxarm.train.make_train: the same TrainFns as R-STDP's
+    trained, history = jax.jit(fns.train)(key, MetaParams.original())
+    result = jax.jit(fns.test)(key, trained, MetaParams.original())      # the R-STDP protocol's test, unchanged
+
+How it differs from R-STDP training (and why):
+
+* spikes carry a surrogate derivative (``NetworkConfig.spike_gradient = "fast_sigmoid"``,
+  :mod:`jaxarm.network.surrogate`); forward, the network fires exactly as under R-STDP's XLA kernel;
+* an epoch is a sequence of **reaches**, not one 30 s run: each gradient step runs one reach of
+  ``GradientConfig.reach_s`` from the start posture (cells at rest, no R-STDP inside it) with the test's EM noise
+  (no babbling: the gradient, not noise, explores), and descends the mean hand-target distance (m) over it. An
+  epoch of ``epoch_duration_s`` holds ``epoch_duration_s / reach_s`` steps, so the budget in network-seconds is
+  the R-STDP protocol's and ``jaxarm train`` checkpoints and resumes by epoch as it does for R-STDP;
+* every reach's background noise is the network's own stream restarted, as the original restarts it for every
+  epoch and for the test; ``LoopConfig.reseed_noise_each_epoch`` = True draws a new stream for every step, so the
+  test's stream is never trained on;
+* the gains stay in R-STDP's range: plastic E->E in [0, plast_ee_maxw], E->I in [0, plast_ei_maxw]; with
+  ``params = "all"`` every synapse's gain but P->ES is trained, in [0, plast_ee_maxw].
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+
+from jaxarm.config.gradient import GradientConfig
+from jaxarm.config.validate import ConfigError
+from jaxarm.learning import babbling as bab
+from jaxarm.learning.metaparams import MetaParams
+from jaxarm.loop import LoopConfig
+from jaxarm.task.config import Target
+
+
+class GradientCarry(NamedTuple):
+    """What gradient training carries from epoch to epoch (``.trained`` as R-STDP's EpochCarry)."""
+
+    trained: Any              # jaxarm.train.Trained
+    opt_state: Any            # Adam's state over the trained gains
+    epoch: jnp.ndarray        # () int32, epochs completed
+
+
+class StepSummary(NamedTuple):
+    """Per gradient step (leading axis = step)."""
+
+    loss_m: jnp.ndarray            # () mean hand-target distance over the reach, m
+    min_distance_m: jnp.ndarray    # () closest approach in the reach, m
+    final_distance_m: jnp.ndarray  # () distance at the end of the reach, m
+    grad_norm: jnp.ndarray         # () norm of the loss gradient over the trained gains, m per unit gain
+    finite: jnp.ndarray            # () bool: the gradient was finite (else the step was skipped)
+
+
+def differentiable_config(config: LoopConfig, grad: GradientConfig = GradientConfig()) -> LoopConfig:
+    """``config`` trained by gradient: surrogate spikes (XLA kernel), the smooth musculoskeletal arm, ``grad``."""
+    network = dataclasses.replace(config.network, spike_gradient="fast_sigmoid", surrogate_width_mv=grad.width_mv,
+                                  surrogate_scale=grad.scale, kernel="xla")
+    return dataclasses.replace(config, network=network, smooth_arm=config.arm == "musculoskeletal", gradient=grad)
+
+
+def make_gradient_train(config: LoopConfig, record=None):
+    """:func:`jaxarm.train.make_train` for a ``config`` with ``gradient`` set (it calls this): the same
+    :class:`~jaxarm.train.TrainFns` (init, epoch, train, test), with gradient epochs (see the module docstring),
+    and ``step(carry, mp, target, k)`` -> (carry, (StepSummary, spike counts)), the k-th gradient step alone."""
+    from jaxarm.train import EpochSummary, TrainFns, _pop_rates, make_train, mean_gain_per_pathway
+
+    grad = config.gradient
+    config = differentiable_config(config, grad)
+    if record is not None and record.train_last_s > 0:
+        raise ConfigError("--record-train-s with gradient learning: training runs reaches, not recorded epochs "
+                          "(record the test only)")
+    base = make_train(dataclasses.replace(config, gradient=None), record)
+    loop, task = base.loop, config.task
+    reach = round(grad.reach_s / task.update_interval_s)
+    per_epoch = round(task.epoch_duration_s / grad.reach_s)
+    if abs(reach * task.update_interval_s - grad.reach_s) > 1e-9 or abs(per_epoch * grad.reach_s
+                                                                         - task.epoch_duration_s) > 1e-9:
+        raise ConfigError(f"GradientConfig.reach_s = {grad.reach_s:g}: must be a multiple of "
+                          f"{task.update_interval_s * 1000:g} ms that divides the epoch, {task.epoch_duration_s:g} s")
+    layout = loop.net.layout
+    n_train = layout.n_plastic if grad.params == "plastic" else layout.offset["P->ES"]
+    is_ee = loop.plastic_tables if grad.params == "plastic" else None
+    optimiser = optax.adam(grad.learning_rate)
+    last10 = min(per_epoch, max(1, round(10.0 / grad.reach_s)))
+
+    def upper(mp: MetaParams):
+        if is_ee is None:
+            return jnp.asarray(mp.plast_ee_maxw, jnp.float32)
+        return jnp.where(jnp.asarray(is_ee), mp.plast_ee_maxw, mp.plast_ei_maxw)
+
+    def init(key) -> GradientCarry:
+        trained = base.init(key).trained
+        return GradientCarry(trained, optimiser.init(trained.wgain[:n_train]), jnp.zeros((), jnp.int32))
+
+    def reach_loss(gains, trained, mp: MetaParams, step, target: Target | None):
+        """Mean hand-target distance (m) of one reach with these trained gains; aux: (min, final distance, spike
+        counts (n_all,))."""
+        noise_key = jax.random.fold_in(trained.noise_key, step) if config.reseed_noise_each_epoch \
+            else trained.noise_key
+        state = loop.init(noise_key, trained.wgain.at[:n_train].set(gains), trained.babble,
+                          bab.em_noise_rates_in_test(mp), target)
+        # the loop's keys feed babbling only, which a reach without learning does not use
+        state, rec = loop.run(trained.wiring, state, jax.random.key(0), mp, reach, learn=False)
+        dist = jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1)
+        return jnp.mean(dist), (jnp.min(dist), dist[-1], state.net.spike_count)
+
+    def step(carry: GradientCarry, mp: MetaParams, target: Target | None, k):
+        trained = carry.trained
+        (value, (closest, final, counts)), g = jax.value_and_grad(reach_loss, has_aux=True)(
+            trained.wgain[:n_train], trained, mp, k, target)
+        finite = jnp.all(jnp.isfinite(g))
+        g = jnp.where(finite, g, 0.0)      # a diverged surrogate gradient skips the step, never poisons the gains
+        updates, opt_state = optimiser.update(g, carry.opt_state)
+        opt_state = jax.tree.map(lambda new, old: jnp.where(finite, new, old), opt_state, carry.opt_state)
+        w = jnp.where(finite, jnp.clip(optax.apply_updates(trained.wgain[:n_train], updates), 0.0, upper(mp)),
+                      trained.wgain[:n_train])
+        carry = carry._replace(trained=trained._replace(wgain=trained.wgain.at[:n_train].set(w)),
+                               opt_state=opt_state)
+        return carry, (StepSummary(value, closest, final, jnp.linalg.norm(g), finite), counts)
+
+    def epoch(carry: GradientCarry, mp: MetaParams, target: Target | None = None):
+        first = carry.epoch * per_epoch
+        carry, (steps, counts) = jax.lax.scan(lambda c, i: step(c, mp, target, first + i), carry,
+                                              jnp.arange(per_epoch))
+        wgain = carry.trained.wgain
+        summary = EpochSummary(
+            rates_hz=_pop_rates(loop, counts.sum(0), per_epoch * grad.reach_s),
+            rates_last10s_hz=_pop_rates(loop, counts[-last10:].sum(0), last10 * grad.reach_s),
+            mean_wgain=mean_gain_per_pathway(layout, wgain), final_distance_m=steps.final_distance_m[-1],
+            min_distance_m=steps.min_distance_m.min(), rewards=jnp.zeros((), jnp.int32),
+            punishments=jnp.zeros((), jnp.int32), lost_spikes=jnp.zeros((), jnp.int32))
+        return carry._replace(epoch=carry.epoch + 1), summary
+
+    def train(key, mp: MetaParams, target: Target | None = None):
+        carry, history = jax.lax.scan(lambda c, _: epoch(c, mp, target), init(key), None, length=task.epochs)
+        return carry.trained, history
+
+    return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=base.test, record=record, step=step)
