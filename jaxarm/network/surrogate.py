@@ -35,4 +35,4 @@ def spike_value(spiked, margin_mv, eligible, width_mv: float, scale: float = 1.0
     density of ``margin_mv`` (Vm - VTHC, mV) where ``eligible`` (not refractory), else 0."""
     smooth = jnp.where(eligible, scale * fast_sigmoid(margin_mv, width_mv), 0.0)
     # s + (f - stop_gradient(f)): f - f is exactly 0.0 for any finite f, so the forward value is the spike itself
-    return spiked.astype(jnp.float32) + (smooth - jax.lax.stop_gradient(smooth))
+    return jnp.asarray(spiked).astype(jnp.float32) + (smooth - jax.lax.stop_gradient(smooth))
