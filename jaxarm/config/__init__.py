@@ -4,8 +4,9 @@ Traced metaparameters (what evolution may change) are pytrees of arrays and live
 """
 from jaxarm.config.validate import ConfigError, check_choice, check_interval, check_range
 from jaxarm.config.arm import MusculoskeletalArmConfig, SimpleArmConfig
+from jaxarm.config.gradient import GradientConfig
 
 __all__ = [
     "ConfigError", "check_choice", "check_interval", "check_range",
-    "MusculoskeletalArmConfig", "SimpleArmConfig",
+    "MusculoskeletalArmConfig", "SimpleArmConfig", "GradientConfig",
 ]
