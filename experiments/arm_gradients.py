@@ -1,6 +1,6 @@
 """Can the musculoskeletal arm's gradient be trusted? jvp against finite differences, and the smooth arm's cost.
 
-    python experiments/arm_gradients.py [--seeds 7 8] [--directions 3] [--ablation] [--compare-seeds 7 ... 12]
+    python experiments/arm_gradients.py [--seeds 7 8] [--directions 3] [--ablation] [--mjx] [--compare-seeds 7 ... 12]
 
 Input: smooth random excitations (:func:`jaxarm.arm.inputs.smooth_random_excitations`, 1 s) from the start posture;
 output: the hand position (m) after T = 30, 100, 300, 1000 ms. Directions: the excitation times a smooth random
@@ -15,7 +15,8 @@ derivative (m per unit step):
 
 R and the other columns are float64 (x64 on: the finite differences need it; the arm's constants stay float32). Arms: the
 default (piecewise smooth), ``smooth=True``, and with ``--ablation`` the smooth arm with one kink restored at a time
-(``all but <kink>``). Then, in float32 as the arm runs by default: the joint paths of the smooth and the default
+(``all but <kink>``); with ``--mjx`` also the MJX-geometry backend, default and smooth (``mjx default``, ``mjx
+smooth``: the same muscles, MuJoCo's tendon paths and joint dynamics). Then, in float32 as the arm runs by default: the joint paths of the smooth and the default
 arm over 1 s on ``--compare-seeds``, against the default arm's own integration error (vs a 0.05 ms run).
 """
 from __future__ import annotations
@@ -87,7 +88,8 @@ def gradient_table(variants: dict, seeds, n_directions: int) -> dict:
     """{variant: {horizon_ms: {column: max over seeds and directions}}}."""
     out = {}
     for name, smooth in variants.items():
-        arm = MusculoskeletalArm("fast", MusculoskeletalArmConfig(smooth=smooth))
+        backend = "mjx" if name.startswith("mjx") else "fast"
+        arm = MusculoskeletalArm(backend, MusculoskeletalArmConfig(smooth=smooth))
         runs64 = _runs(arm)
         with jax.enable_x64(False):
             runs32 = _runs(arm)
@@ -135,9 +137,12 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[7, 8])
     ap.add_argument("--directions", type=int, default=3)
     ap.add_argument("--ablation", action="store_true", help="also the smooth arm with one kink restored at a time")
+    ap.add_argument("--mjx", action="store_true", help="also the MJX backend, default and smooth")
     ap.add_argument("--compare-seeds", type=int, nargs="*", default=list(range(7, 13)))
     args = ap.parse_args(argv)
     variants = {"default": False, "smooth": True}
+    if args.mjx:
+        variants.update({"mjx default": False, "mjx smooth": True})
     if args.ablation:
         variants.update({f"all but {k}": tuple(n for n in SMOOTH_KINKS if n != k) for k in SMOOTH_KINKS})
     table = gradient_table(variants, args.seeds, args.directions)
