@@ -6,6 +6,7 @@ subsystem's heavy imports (MuJoCo, sockets) never slow another. Each target is `
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 
 # name -> (module:function, one-line help)
@@ -49,7 +50,27 @@ def main(argv: list[str] | None = None) -> int:
         if error:
             return error
     module, func = COMMANDS[name][0].split(":")
-    return int(getattr(importlib.import_module(module), func)(rest) or 0)
+    try:
+        return int(getattr(importlib.import_module(module), func)(rest) or 0)
+    except Exception as e:
+        gl = os.environ.get("MUJOCO_GL")
+        if gl is None or not _raised_in_mujoco(e):
+            raise
+        # MuJoCo sets up its OpenGL at import, from MUJOCO_GL: a bad value, or egl/osmesa without their libraries
+        print(f"jaxarm {name}: MuJoCo cannot be imported with MUJOCO_GL={gl} ({type(e).__name__}: "
+              f"{str(e).splitlines()[0] if str(e) else ''}); unset MUJOCO_GL (only offscreen rendering needs it) or "
+              "set egl or osmesa with their libraries", file=sys.stderr)
+        return 2
+
+
+def _raised_in_mujoco(e: BaseException) -> bool:
+    """Whether the exception was raised inside the mujoco package (e.g. at its import)."""
+    tb = e.__traceback__
+    while tb is not None:
+        if f"{os.sep}mujoco{os.sep}" in tb.tb_frame.f_code.co_filename:
+            return True
+        tb = tb.tb_next
+    return False
 
 
 #: Commands that split their batch over every device of every process (``--devices``, ``--coordinator``, ...).

@@ -173,3 +173,19 @@ def test_mujoco_renders_the_musculoskeletal_arm_where_it_can(ms_run, tmp_path):
     assert np.abs(panel[-1] - panel[0]).mean() > 0.1                    # the arm moved
     red = (panel[0][..., 0] > 120) & (panel[0][..., 1] < 110) & (panel[0][..., 2] < 110)
     assert red.sum() > 20                                               # the target disc
+
+
+def test_a_bad_mujoco_gl_is_a_one_line_error_in_any_command(tmp_path):
+    """MuJoCo reads MUJOCO_GL at import; a command that needs MuJoCo (here training with the musculoskeletal arm)
+    says so in one line and exits 2 instead of a traceback."""
+    import os
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "jaxarm.cli", "train", "--arm", "musculoskeletal", "--networks", "1",
+                           "--epochs", "1", "--epoch-s", "0.1", "--test-s", "0.1", "--out", str(tmp_path / "r"),
+                           "--no-progress"], capture_output=True, text=True, timeout=300,
+                          env=dict(os.environ, MUJOCO_GL="no-such-gl"))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    line = proc.stderr.strip().splitlines()[-1]
+    assert "MUJOCO_GL=no-such-gl" in line and len(line) < 400
