@@ -83,7 +83,10 @@ class MjxGeometry:
 
     def __call__(self, q, qd) -> ArmGeometry:
         mjx, m = self._mjx, self.model
-        d = self._data0.replace(qpos=jnp.asarray(q, jnp.float32), qvel=jnp.asarray(qd, jnp.float32))
+        # MJX computes in the float type its model was put with: float32, or float64 if x64 was on (the
+        # finite-difference checks of experiments/arm_gradients.py); the results follow the arm's state
+        dtype = self._data0.qpos.dtype
+        d = self._data0.replace(qpos=jnp.asarray(q, dtype), qvel=jnp.asarray(qd, dtype))
         d = mjx.kinematics(m, d)
         d = mjx.com_pos(m, d)
         d = mjx.tendon(m, d)
@@ -91,7 +94,8 @@ class MjxGeometry:
         d = mjx.com_vel(m, d)
         d = mjx.rne(m, d)
         ten_j = _ten_jacobian(d, m.nv, len(self.names))
-        return ArmGeometry(_ten_length(d), -ten_j, mjx.full_m(m, d), d.qfrc_bias)
+        out = jnp.result_type(q)
+        return ArmGeometry(*(jnp.asarray(x, out) for x in (_ten_length(d), -ten_j, mjx.full_m(m, d), d.qfrc_bias)))
 
 
 def _ten_length(d):
