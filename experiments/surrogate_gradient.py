@@ -38,16 +38,13 @@ def main(argv=None) -> int:
     def make(scale: float):
         net = Network(NetworkConfig(kernel="xla", spike_gradient="fast_sigmoid", surrogate_width_mv=args.width_mv,
                                     surrogate_scale=scale))
-        lay = net.layout
-        a = lay.offset["ES->EM"]
-        b = a + net.config.size("EM") * lay.in_degree["ES->EM"]
-        em = Populations(net.config).slice("EM")
+        es_em, em = net.layout.synapses("ES->EM"), Populations(net.config).slice("EM")
         wiring = net.make_wiring(jax.random.key(0))
         steps = net.config.steps(args.ms)
 
         def count(alpha, key):
             state = net.set_lengths(net.init(key), jnp.array([0.10, 0.12, 0.10, 0.14]))
-            state = state._replace(wgain=state.wgain.at[a:b].multiply(alpha))
+            state = state._replace(wgain=state.wgain.at[es_em].multiply(alpha))
             _, spikes = net.run(wiring, state, NetworkParams.original(), steps)
             return spikes[:, em].sum()
         return count

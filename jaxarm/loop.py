@@ -226,7 +226,6 @@ class ClosedLoop:
         it returns (state, IntervalRecord, spikes (steps, n_all) bool of the interval, the arm's MuscleObs or
         None) instead of (state, IntervalRecord); the state and record are the same either way."""
         c = self.config
-        counts_before = state.net.spike_count
         if self.net.differentiable:
             # float32 spikes with a surrogate derivative: the counts are the same numbers, and differentiable
             net, spikes = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval)
@@ -235,7 +234,7 @@ class ClosedLoop:
         else:
             net, spikes = self.net.run(wiring, state.net, self.net_params(mp), self.steps_per_interval,
                                        collect=record)
-            em_counts = ro.em_group_counts(c.network, net.spike_count - counts_before)
+            em_counts = ro.em_group_counts(c.network, net.spike_count - state.net.spike_count)
         readout = ro.push(state.readout, em_counts)
         # The loop's clock counts whole intervals (an integer), so its times are exact multiples of interface_ms
         # whatever the network's dt (float32(step) * dt is not exact for dt = 0.1 ms).

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from dataclasses import asdict
 import sys
 import time
 from pathlib import Path
@@ -141,7 +140,7 @@ class Batch:
 
     # -- identity -------------------------------------------------------------------------------------------------
     def meta(self) -> dict:
-        learning = {} if self.config.gradient is None else {"learning": asdict(self.config.gradient)}
+        learning = {} if self.config.gradient is None else {"learning": dataclasses.asdict(self.config.gradient)}
         return self.description | self.network_meta() | learning
 
     def network_meta(self) -> dict:

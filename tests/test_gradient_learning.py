@@ -87,14 +87,11 @@ def test_reverse_mode_through_the_rematerialised_network_equals_forward_mode():
     # transposes nor rematerialises): the same derivative of EM spikes (weighted by group) in 50 ms wrt a scale of
     # the ES->EM gains.
     net = Network(NetworkConfig(kernel="xla", spike_gradient="fast_sigmoid"))
-    lay = net.layout
-    a = lay.offset["ES->EM"]
-    b = a + net.config.size("EM") * lay.in_degree["ES->EM"]
-    em = Populations(net.config).slice("EM")
+    es_em, em = net.layout.synapses("ES->EM"), Populations(net.config).slice("EM")
     weights = jnp.asarray(np.random.default_rng(3).uniform(0.5, 1.5, net.config.size("EM")), jnp.float32)
 
     def f(alpha):
-        wgain = jnp.ones((lay.n_syn,), jnp.float32).at[a:b].set(alpha)
+        wgain = jnp.ones((net.layout.n_syn,), jnp.float32).at[es_em].set(alpha)
         _, spikes = _run(net, jax.random.key(4), 200, wgain)
         return jnp.sum(spikes[:, em] * weights)
 
@@ -163,15 +160,12 @@ def test_surrogate_gradient_points_up_the_noise_averaged_spike_count():
     # against the mean surrogate gradient: same sign, within a factor of 5 (measured 0.33 at w = 2 mV, g = 0.03:
     # the surrogate is dampened to keep the recurrent loops from exploding, so it underestimates).
     net = Network(NetworkConfig(kernel="xla", spike_gradient="fast_sigmoid"))
-    lay = net.layout
-    a = lay.offset["ES->EM"]
-    b = a + net.config.size("EM") * lay.in_degree["ES->EM"]
-    em = Populations(net.config).slice("EM")
+    es_em, em = net.layout.synapses("ES->EM"), Populations(net.config).slice("EM")
     wiring = net.make_wiring(jax.random.key(0))
 
     def count(alpha, key):
         state = net.set_lengths(net.init(key), LENGTHS_M)
-        state = state._replace(wgain=state.wgain.at[a:b].multiply(alpha))
+        state = state._replace(wgain=state.wgain.at[es_em].multiply(alpha))
         _, spikes = net.run(wiring, state, NetworkParams.original(), 800)    # 200 ms
         return spikes[:, em].sum()
 

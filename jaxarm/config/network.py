@@ -207,13 +207,13 @@ class NetworkConfig:
             raise ConfigError(f"NetworkConfig.scaled factor = {factor!r}: an integer in [1, 100]")
         return dataclasses.replace(
             self, sizes=tuple(n * factor for n in self.sizes), pmat_scale=self.pmat_scale / factor,
-            p_positions=self.p_positions or self.n_p // 4,
+            p_positions=self.p_positions_per_group,
             readout_em_reference=self.readout_em_reference or self.size("EM"))
 
     # ----- as data -----
     def to_dict(self, changed_only: bool = False) -> dict:
         """The fields as plain JSON/TOML values (tuples as lists); ``changed_only``: only those that differ from
-        NetworkConfig's defaults. ``kernel`` and ``native_threads`` (how to compute, not what) are left out."""
+        NetworkConfig's defaults. The :data:`RUNTIME_FIELDS` (how to compute, not what) are left out."""
         default = NetworkConfig()
         out = {}
         for f in dataclasses.fields(self):

@@ -52,7 +52,8 @@ class StepSummary(NamedTuple):
     loss_m: jnp.ndarray            # () mean hand-target distance over the reach, m
     min_distance_m: jnp.ndarray    # () closest approach in the reach, m
     final_distance_m: jnp.ndarray  # () distance at the end of the reach, m
-    grad_norm: jnp.ndarray         # () norm of the loss gradient over the trained gains, m per unit gain
+    grad_norm: jnp.ndarray         # () norm of the loss gradient over the trained gains, m per unit gain (inf/NaN:
+    #                                skipped)
     finite: jnp.ndarray            # () bool: the gradient was finite (else the step was skipped)
 
 
@@ -85,7 +86,8 @@ def make_gradient_train(config: LoopConfig, record=None):
     layout = loop.net.layout
     n_train = layout.n_plastic if grad.params == "plastic" else layout.offset["P->ES"]
     is_ee = loop.plastic_tables if grad.params == "plastic" else None
-    optimiser = optax.adam(grad.learning_rate)
+    # a diverged surrogate gradient (inf/NaN) skips its step, never poisons the gains: optax's guard, never giving up
+    optimiser = optax.apply_if_finite(optax.adam(grad.learning_rate), max_consecutive_errors=2 ** 30)
     last10 = min(per_epoch, max(1, round(10.0 / grad.reach_s)))
 
     def upper(mp: MetaParams):
@@ -113,15 +115,11 @@ def make_gradient_train(config: LoopConfig, record=None):
         trained = carry.trained
         (value, (closest, final, counts)), g = jax.value_and_grad(reach_loss, has_aux=True)(
             trained.wgain[:n_train], trained, mp, k, target)
-        finite = jnp.all(jnp.isfinite(g))
-        g = jnp.where(finite, g, 0.0)      # a diverged surrogate gradient skips the step, never poisons the gains
-        updates, opt_state = optimiser.update(g, carry.opt_state)
-        opt_state = jax.tree.map(lambda new, old: jnp.where(finite, new, old), opt_state, carry.opt_state)
-        w = jnp.where(finite, jnp.clip(optax.apply_updates(trained.wgain[:n_train], updates), 0.0, upper(mp)),
-                      trained.wgain[:n_train])
+        updates, opt_state = optimiser.update(g, carry.opt_state)   # zero updates on a skipped step
+        w = jnp.clip(optax.apply_updates(trained.wgain[:n_train], updates), 0.0, upper(mp))
         carry = carry._replace(trained=trained._replace(wgain=trained.wgain.at[:n_train].set(w)),
                                opt_state=opt_state)
-        return carry, (StepSummary(value, closest, final, jnp.linalg.norm(g), finite), counts)
+        return carry, (StepSummary(value, closest, final, jnp.linalg.norm(g), opt_state.last_finite), counts)
 
     def epoch(carry: GradientCarry, mp: MetaParams, target: Target | None = None):
         first = carry.epoch * per_epoch

@@ -142,8 +142,7 @@ class Network:
 
     @cached_property
     def p_synapses(self) -> slice:
-        start = self.layout.offset["P->ES"]
-        return slice(start, start + self.config.size("ES") * self.layout.in_degree["P->ES"])
+        return self.layout.synapses("P->ES")
 
     @cached_property
     def native_cell_floats(self) -> np.ndarray:

@@ -13,17 +13,14 @@ the absolute refractory period only (a refractory cell cannot fire whatever its 
 et al. 2018, NeurIPS, use 0.3) matters here: the surrogate is taken at every 0.25 ms step, and a cell's margin
 stays raised for hundreds of ms (NMDA, tau 300 ms), so the recurrent ES/EM loops multiply it. Measured
 (``experiments/surrogate_gradient.py``): at w = 2 mV, gradients of 200 ms of EM spikes are finite and steady
-at g = 0.03 and explode from about g = 0.05 (sd 4x the mean, then inf). The resets after a spike (AHP, dynamic threshold) are not differentiated
-through the spike, the usual choice (Zenke & Vogels 2021, Neural Comput. 33:899).
+at g = 0.03 and explode from about g = 0.05 (sd 4x the mean, then inf). The resets after a spike (AHP, dynamic
+threshold) are not differentiated through the spike, the usual choice (Zenke & Vogels 2021, Neural Comput.
+33:899).
 """
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-
-#: Surrogate derivatives by name (``NetworkConfig.spike_gradient``).
-SPIKE_GRADIENTS = ("none", "fast_sigmoid")
-
 
 def fast_sigmoid(margin_mv, width_mv: float):
     """The antiderivative of the fast-sigmoid density: ``x / (2 (w + |x|))`` in (-1/2, 1/2), dimensionless."""

@@ -193,8 +193,7 @@ class WiringLayout:
 
     @cached_property
     def n_syn(self) -> int:
-        last = PATHWAYS[-1]
-        return self.offset[last.name] + self.config.size(last.post) * self.in_degree[last.name]
+        return self.synapses(PATHWAYS[-1].name).stop
 
     @cached_property
     def n_plastic(self) -> int:
@@ -211,12 +210,15 @@ class WiringLayout:
                 return pw
         raise KeyError(f"no pathway {name!r}; known: {', '.join(p.name for p in PATHWAYS)}")
 
+    def synapses(self, name: str) -> slice:
+        """The synapse indices of pathway ``name`` (its contiguous block of the per-synapse arrays)."""
+        start = self.offset[name]
+        return slice(start, start + self.config.size(self.pathway(name).post) * self.in_degree[name])
+
     def view(self, per_synapse, name: str):
         """The (..., n_post, in_degree) block of pathway ``name`` of a per-synapse array (..., n_syn[+1])."""
-        pw = self.pathway(name)
-        n_post, k = self.config.size(pw.post), self.in_degree[name]
-        a = per_synapse[..., self.offset[name]:self.offset[name] + n_post * k]
-        return a.reshape(a.shape[:-1] + (n_post, k))
+        a = per_synapse[..., self.synapses(name)]
+        return a.reshape(a.shape[:-1] + (self.config.size(self.pathway(name).post), self.in_degree[name]))
 
     def pathway_of_synapse(self) -> np.ndarray:
         """(n_syn,) index into PATHWAYS of every synapse."""

@@ -19,7 +19,6 @@ it the video shows the arm alone and says so.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import warnings
 from pathlib import Path
@@ -326,14 +325,6 @@ def main(argv: list[str] | None = None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     from jaxarm.viz.mujoco_render import RenderUnavailable
 
-    if run.arm == "musculoskeletal":
-        try:                          # MuJoCo sets up its OpenGL at import, from MUJOCO_GL (the muscle paths need it)
-            import mujoco  # noqa: F401
-        except Exception as e:  # noqa: BLE001 - the GL bindings fail with many types
-            print(f"jaxarm video: MuJoCo cannot be imported with MUJOCO_GL={os.environ.get('MUJOCO_GL', 'unset')} "
-                  f"({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}); unset it, or set egl or osmesa "
-                  "where their libraries are installed", file=sys.stderr)
-            return 2
     try:
         info = make_video(run, out, args.network, args.fps, args.start_s, stop, args.size, args.raster_s, args.naive,
                           progress=not args.no_progress, renderer=args.renderer, robot_log=args.robot_log)
