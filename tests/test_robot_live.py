@@ -232,7 +232,7 @@ def test_sigterm_mid_run_writes_a_complete_log_and_exits_0(tmp_path):
         for k in range(20):
             sock.sendto(encode([0.62 + 0.002 * k, 1.53], k, 0.01 * k), ("127.0.0.1", port))
             time.sleep(0.01)
-    time.sleep(0.3)
+    time.sleep(1.0)   # room for a simulator slowed by a loaded machine to judge the 20 datagrams first
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
@@ -242,7 +242,8 @@ def test_sigterm_mid_run_writes_a_complete_log_and_exits_0(tmp_path):
     log = load_log(tmp_path / "log.csv")
     assert tuple(log) == LOG_COLUMNS
     n = summary["ticks"]
-    assert 100 < n < 15000 and len(log["t"]) == n                      # stopped early, every tick logged
+    # stopped early, every tick logged (a loaded machine runs fewer ticks before the signal: CI once saw 65)
+    assert 0 < n < 15000 and len(log["t"]) == n
     np.testing.assert_allclose(np.diff(log["t"]), 0.002, atol=1e-4)
     # every datagram accounted for: judged and accepted, or (a simulator stalled by a loaded machine) dropped as
     # older than the newest 16 of a tick
