@@ -35,9 +35,8 @@ from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.gradient import differentiable_config
 from jaxarm.learning.metaparams import MetaParams
-from jaxarm.loop import POP_NAMES, LoopConfig
+from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig
-from jaxarm.network.wiring import PATHWAYS
 from jaxarm.run import Run, SetsRun, add_network_arguments, network_config
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
 from jaxarm.train import Trained
@@ -68,26 +67,28 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
     seeds = run.seeds
     m_tr, m_nv = _metrics(trained_res, target, dt), _metrics(naive_res, target, dt)
     hist = {k: np.asarray(v) for k, v in history._asdict().items()}
+    spec = run.config.network.spec
+    pop_names, pathways = spec.network_populations, spec.pathways
     results = {
         "success_count": int(m_tr["success"].sum()),
         "n_networks": run.n,
         "target": task.target,
         "target_xy_m": target.round(5).tolist(),
-        "networks": [row | {"test_rates_hz": {p: round(float(r), 3) for p, r in zip(POP_NAMES, rates)}}
+        "networks": [row | {"test_rates_hz": {p: round(float(r), 3) for p, r in zip(pop_names, rates)}}
                      for row, rates in zip(_network_rows(seeds, m_tr), np.asarray(trained_res.rates_hz))],
         "naive": {"success_count": int(m_nv["success"].sum()), "networks": _network_rows(seeds, m_nv)},
         "history": {
             "rates_last10s_hz": {p: hist["rates_last10s_hz"][:, :, j].mean(axis=1).round(3).tolist()
-                                 for j, p in enumerate(POP_NAMES)},
+                                 for j, p in enumerate(pop_names)},
             "mean_wgain": {pw.name: hist["mean_wgain"][:, :, j].mean(axis=1).round(4).tolist()
-                           for j, pw in enumerate(PATHWAYS)},
+                           for j, pw in enumerate(pathways)},
             "final_distance_m": hist["final_distance_m"].mean(axis=1).round(4).tolist(),
             "rewards": hist["rewards"].sum(axis=1).tolist(),
             "punishments": hist["punishments"].sum(axis=1).tolist(),
             "lost_spikes": int(hist["lost_spikes"].sum()),
         },
         "test_rates_hz": {p: float(np.asarray(trained_res.rates_hz)[:, j].mean().round(3))
-                          for j, p in enumerate(POP_NAMES)},
+                          for j, p in enumerate(pop_names)},
         "timing": {"train_wall_s_this_invocation": round(wall_s, 2), "epochs_run_this_invocation": epochs_run,
                    "compile_s": None if compile_s is None else round(compile_s, 2),
                    "network_s_per_s": round(epochs_run * task.epoch_duration_s * run.n / wall_s, 2) if wall_s else None,
@@ -99,8 +100,8 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
     run.out.mkdir(parents=True, exist_ok=True)
     (run.out / "results.json").write_text(json.dumps(results, indent=1))
     # per network and epoch (results.json holds the means): what a comparison with the original's one network needs
-    np.savez_compressed(run.out / "history.npz", seeds=np.asarray(seeds), populations=np.asarray(POP_NAMES),
-                        pathways=np.asarray([pw.name for pw in PATHWAYS]),
+    np.savez_compressed(run.out / "history.npz", seeds=np.asarray(seeds), populations=np.asarray(pop_names),
+                        pathways=np.asarray([pw.name for pw in pathways]),
                         **{k: v for k, v in hist.items() if k != "lost_spikes"})
     t = np.arange(trained_res.hand_m.shape[1]) * dt
     np.savez_compressed(run.out / "trajectories.npz", t=t, q=np.asarray(trained_res.q_rad),
@@ -120,7 +121,6 @@ def write_records(run, trained_res, naive_res) -> dict:
     (the tests' muscles) of a recording run (:mod:`jaxarm.record`); returns what results.json says about them."""
     from jaxarm import record as rec_mod
     from jaxarm.network.populations import Populations
-    from jaxarm.config.network import POPULATIONS
 
     net, task = run.config.network, run.config.task
     steps = net.steps_per_interface
@@ -134,12 +134,13 @@ def write_records(run, trained_res, naive_res) -> dict:
                                  "stop_step": task.epoch_steps * steps}
     pops = Populations(net)
     group = np.full(net.n_all, -1, np.int8)
-    group[pops.slice("EM")] = pops.em_groups()
-    group[pops.slice("P")] = pops.p_groups()
+    group[pops.slice(net.spec.readout)] = pops.em_groups()
+    group[pops.slice(net.spec.proprio)] = pops.p_groups()
     networks = run.recorded_networks()
     rec_mod.save_spikes(run.out / rec_mod.SPIKES_FILE, windows, seeds=run.seeds, networks=networks,
-                        dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=POPULATIONS,
-                        pop_start=[pops.start[p] for p in POPULATIONS], pop_stop=[pops.stop[p] for p in POPULATIONS],
+                        dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=net.populations,
+                        pop_start=[pops.start[p] for p in net.populations],
+                        pop_stop=[pops.stop[p] for p in net.populations],
                         group=group,
                         capacity=run.record_capacity, config=run.record, arm=run.config.arm)
     files = [rec_mod.SPIKES_FILE]

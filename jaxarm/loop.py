@@ -39,13 +39,11 @@ from jaxarm.network import noise as noise_mod
 from jaxarm.network import readout as ro
 from jaxarm.network.network import Network, NetworkParams
 from jaxarm.network.populations import Populations
-from jaxarm.network.wiring import PATHWAYS, CELL_TYPE
 from jaxarm.task.config import Target, TaskConfig
 
 ARMS = ("simple", "musculoskeletal")
 #: Longest run (epoch or test) in network clock steps: float32 times step * dt keep a quarter-step resolution.
 MAX_RUN_STEPS = 2 ** 22
-POP_NAMES = ("ES", "IS", "ISL", "EM", "IM", "IML")
 
 
 @dataclass(frozen=True)
@@ -157,17 +155,20 @@ class ClosedLoop:
     def plastic_tables(self):
         """(maxw selector, is E->E) per plastic synapse, from the pathway of each synapse."""
         layout = self.net.layout
+        spec = self.net.config.spec
         pw = layout.pathway_of_synapse()[: layout.n_plastic]
-        is_ee = np.array([CELL_TYPE[PATHWAYS[i].post] == "E" for i in pw])
+        is_ee = np.array([spec.output(layout.pathways[i].post) == "excitatory" for i in pw])
         return is_ee  # numpy: a cached jax array would leak from the first trace that built it
 
     @cached_property
     def scaling_tables(self):
-        """Per synapse: |AMPA| + |NMDA| or |GABA| base weight (mV), zero for P->ES (scaling counts the 512 network
-        cells only, as in the original), and the total S0 of those base weights."""
-        pw = self.net.layout.pathway_of_synapse()
-        base = np.array([0.0 if PATHWAYS[i].pre == "P" else abs(PATHWAYS[i].weight) + abs(PATHWAYS[i].nmda_weight)
-                         for i in pw], np.float32)
+        """Per synapse: |AMPA| + |NMDA| or |GABA| base weight (mV), zero for the generator's (P->ES: scaling counts
+        the 512 network cells only, as in the original), and the total S0 of those base weights."""
+        layout = self.net.layout
+        proprio = self.net.config.spec.proprio
+        per_pathway = [0.0 if pw.pre == proprio else abs(pw.weight_mv) + abs(layout.nmda_weight_mv(pw))
+                       for pw in layout.pathways]
+        base = np.array([per_pathway[i] for i in layout.pathway_of_synapse()], np.float32)
         return base, float(base.sum())  # numpy, see plastic_tables
 
     # -- pieces ------------------------------------------------------------------------------------------------

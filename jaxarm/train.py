@@ -23,7 +23,7 @@ import jax.numpy as jnp
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
-from jaxarm.loop import POP_NAMES, ClosedLoop, LoopConfig
+from jaxarm.loop import ClosedLoop, LoopConfig
 from jaxarm.network import noise as noise_mod
 from jaxarm.task.config import Target
 
@@ -92,14 +92,14 @@ class TrainFns(NamedTuple):
 def _pop_rates(loop: ClosedLoop, counts, seconds):
     pops = loop.pops
     return jnp.stack([jnp.sum(counts[..., pops.slice(p)], axis=-1) / (loop.config.network.size(p) * seconds)
-                      for p in POP_NAMES])
+                      for p in loop.config.network.spec.network_populations])
 
 
 def mean_gain_per_pathway(layout, wgain):
     """(n_pathways,) mean gain of each pathway's synapses."""
     pathway_of = jnp.asarray(layout.pathway_of_synapse())
     return jax.ops.segment_sum(wgain, pathway_of, num_segments=len(layout.in_degree)) / jnp.asarray(
-        [layout.config.size(pw.post) * layout.in_degree[pw.name] for pw in _pathways()], jnp.float32)
+        [layout.config.size(pw.post) * layout.in_degree[pw.name] for pw in layout.pathways], jnp.float32)
 
 
 def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
@@ -251,9 +251,3 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
 
     return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=test,
                     epoch_recorded=epoch_recorded if rec_intervals else None, record=record)
-
-
-def _pathways():
-    from jaxarm.network.wiring import PATHWAYS
-
-    return PATHWAYS

@@ -11,10 +11,11 @@ import math
 import os
 from dataclasses import dataclass, field
 
+from jaxarm.config.spec import NetworkSpec, read_table, to_toml
 from jaxarm.config.validate import ConfigError, check_choice, check_interval, check_range
 
-#: Population names in the order of the original's global cell ids (col.hoc mkcells, spec §2).
-POPULATIONS = ("ES", "IS", "ISL", "EM", "IM", "IML", "P")
+#: Keys of a NetworkSpec in NetworkConfig's flat table form (:meth:`NetworkConfig.to_dict`).
+SPEC_KEYS = ("populations", "pathways", "cell_types", "physics", "readout", "proprio")
 #: NetworkConfig fields that choose how the network is computed, not what it is (never part of a run's identity).
 RUNTIME_FIELDS = ("kernel", "native_threads", "spike_gradient", "surrogate_width_mv", "surrogate_scale")
 
@@ -34,7 +35,9 @@ class NetworkConfig:
             of the same networks and seed (8 networks x 20 s: worst population -9.1 % at 0.25 ms, -21.9 % at
             0.5 ms; ``experiments/network_rates.py --compare-dt 0.1,0.2,0.25,0.5,1 --networks 8 --seconds 20``).
         interface_ms: period of the closed loop (readout, arm step, P update), ms (the original's aDT = 10).
-        sizes: (ES, IS, ISL, EM, IM, IML, P) population sizes (original: scale 4).
+        spec: what the network is: populations and their sizes, cell types, pathways, background noise and the
+            synaptic physics (:class:`jaxarm.config.spec.NetworkSpec`; default the paper's,
+            ``NetworkSpec.dura_bernal_2015()``). ``sizes`` is a shortcut to its population sizes.
         pmat_scale: in-degree = int(0.5 + pmat * pmat_scale * N_pre) (the original's 0.75 * 6 / scale = 1.125).
         self_connections: "code" lets a cell draw itself as presynaptic partner, as the original did by accident
             (uninitialised ``prid``, spec §2); "exclude" forbids it (ModelDB 150245's fix).
@@ -62,6 +65,8 @@ class NetworkConfig:
             ``max(spike_capacity, ceil(B * batch_spike_capacity))`` per group: entries per network, sized for the
             mean spikes per block (~1 ES, ~0.3 EM, ~0.3 inhibitory at the original's rates and dt 0.25 ms) with
             room to spare; a batch's total is far steadier than one network's, so the list can be short.
+            Both give one entry per spike group of the spec (``NetworkSpec.spike_groups``), or three that stand for
+            (the first excitatory group, every other excitatory group, the inhibitory group).
         block_steps: upper limit on the steps per delivery block (0 = as long as exactness allows, see
             ``Network.block_steps``; 1 = deliver after every step). Changes speed, not results.
         max_passes: most spike-list passes per block and group; spikes still left after them are lost and counted
@@ -109,7 +114,7 @@ class NetworkConfig:
 
     dt_ms: float = 0.25
     interface_ms: float = 10.0
-    sizes: tuple[int, int, int, int, int, int, int] = (192, 44, 20, 192, 44, 20, 192)
+    spec: NetworkSpec = field(default_factory=NetworkSpec.dura_bernal_2015)
     pmat_scale: float = 1.125
     self_connections: str = "code"
     p_tuning: str = "code"
@@ -143,15 +148,8 @@ class NetworkConfig:
         check_range(self, "interface_ms", 1.0, 1000.0)
         if not _is_multiple(self.interface_ms, 1.0):
             raise ConfigError(f"NetworkConfig.interface_ms = {self.interface_ms!r}: must be a whole number of ms")
-        if (not isinstance(self.sizes, tuple) or len(self.sizes) != len(POPULATIONS)
-                or not all(isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 100_000 for n in self.sizes)):
-            raise ConfigError(f"NetworkConfig.sizes = {self.sizes!r}: a tuple of {len(POPULATIONS)} integers in "
-                              f"[1, 100000], in the order {POPULATIONS}")
-        for name in ("EM", "P"):
-            n = self.sizes[POPULATIONS.index(name)]
-            if n % 4:
-                raise ConfigError(f"NetworkConfig.sizes = {self.sizes!r}: {name} size {n} must be a multiple of 4 "
-                                  "(four muscle groups, id % 4)")
+        if not isinstance(self.spec, NetworkSpec):
+            raise ConfigError(f"NetworkConfig.spec: a NetworkSpec, got {type(self.spec).__name__}")
         check_range(self, "pmat_scale", 0.0, 100.0, lo_open=True)
         check_choice(self, "self_connections", ("code", "exclude"))
         check_choice(self, "p_tuning", ("code", "paper"))
@@ -169,16 +167,17 @@ class NetworkConfig:
         if not isinstance(self.readout_clip, bool):
             raise ConfigError(f"NetworkConfig.readout_clip = {self.readout_clip!r}: must be True or False")
         check_range(self, "readout_bins", 2, 1000, integer=True)
-        if (not isinstance(self.spike_capacity, tuple) or len(self.spike_capacity) != 3
+        n_groups = len(self.spec.spike_groups)
+        if (not isinstance(self.spike_capacity, tuple) or len(self.spike_capacity) not in (3, n_groups)
                 or not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= 4096
                            for k in self.spike_capacity)):
-            raise ConfigError(f"NetworkConfig.spike_capacity = {self.spike_capacity!r}: a tuple of 3 integers in "
-                              "[1, 4096] (ES, EM, inhibitory spike groups)")
-        if (not isinstance(self.batch_spike_capacity, tuple) or len(self.batch_spike_capacity) != 3
+            raise ConfigError(f"NetworkConfig.spike_capacity = {self.spike_capacity!r}: a tuple of 3 or "
+                              f"{n_groups} (one per spike group) integers in [1, 4096]")
+        if (not isinstance(self.batch_spike_capacity, tuple) or len(self.batch_spike_capacity) not in (3, n_groups)
                 or not all(isinstance(k, (int, float)) and not isinstance(k, bool) and 0.01 <= k <= 4096
                            for k in self.batch_spike_capacity)):
-            raise ConfigError(f"NetworkConfig.batch_spike_capacity = {self.batch_spike_capacity!r}: a tuple of 3 "
-                              "numbers in [0.01, 4096] (spike-list entries per network of a batch: ES, EM, inhibitory)")
+            raise ConfigError(f"NetworkConfig.batch_spike_capacity = {self.batch_spike_capacity!r}: a tuple of 3 or "
+                              f"{n_groups} (one per spike group) numbers in [0.01, 4096]")
         check_range(self, "block_steps", 0, 10_000, integer=True)
         check_range(self, "max_passes", 0, 100_000, integer=True)
         check_range(self, "out_capacity", 0, 1_000_000, integer=True)
@@ -206,56 +205,85 @@ class NetworkConfig:
         if isinstance(factor, bool) or not isinstance(factor, int) or not 1 <= factor <= 100:
             raise ConfigError(f"NetworkConfig.scaled factor = {factor!r}: an integer in [1, 100]")
         return dataclasses.replace(
-            self, sizes=tuple(n * factor for n in self.sizes), pmat_scale=self.pmat_scale / factor,
+            self, spec=self.spec.with_sizes(n * factor for n in self.sizes), pmat_scale=self.pmat_scale / factor,
             p_positions=self.p_positions_per_group,
-            readout_em_reference=self.readout_em_reference or self.size("EM"))
+            readout_em_reference=self.readout_em_reference or self.size(self.spec.readout))
+
+    def with_sizes(self, sizes) -> "NetworkConfig":
+        """This configuration with the spec's population sizes replaced (in population order)."""
+        return dataclasses.replace(self, spec=self.spec.with_sizes(sizes))
+
+    def group_capacities(self) -> tuple[tuple[int, ...], tuple[float, ...]]:
+        """(spike_capacity, batch_spike_capacity) with one entry per spike group (a 3-entry setting stands for
+        the first excitatory group, every other excitatory group, the inhibitory group)."""
+        groups = self.spec.spike_groups
+        exc = [self.spec.output(g[0]) == "excitatory" for g in groups]
+
+        def per_group(values):
+            if len(values) == len(groups) and (len(groups) != 3 or exc == [True, True, False]):
+                return tuple(values)
+            first = exc.index(True) if True in exc else -1
+            return tuple(values[0] if i == first else values[1] if e else values[2] for i, e in enumerate(exc))
+
+        return per_group(self.spike_capacity), per_group(self.batch_spike_capacity)
 
     # ----- as data -----
     def to_dict(self, changed_only: bool = False) -> dict:
-        """The fields as plain JSON/TOML values (tuples as lists); ``changed_only``: only those that differ from
-        NetworkConfig's defaults. The :data:`RUNTIME_FIELDS` (how to compute, not what) are left out."""
+        """The fields as plain JSON/TOML values (tuples as lists), one flat table: the spec's population sizes as
+        ``sizes`` and, when the spec differs from the paper's in more than its sizes, the whole spec's parts
+        (``populations``, ``pathways``, ``cell_types``, ``physics``, ``readout``, ``proprio``; see
+        :class:`~jaxarm.config.spec.NetworkSpec`) instead. ``changed_only``: only what differs from NetworkConfig's
+        defaults. The :data:`RUNTIME_FIELDS` (how to compute, not what) are left out."""
         default = NetworkConfig()
         out = {}
+        paper = default.spec
+        only_sizes = len(self.sizes) == len(paper.sizes) and self.spec == paper.with_sizes(self.sizes)
+        if not only_sizes:
+            out.update(self.spec.to_dict())
+        elif not (changed_only and self.sizes == paper.sizes):
+            out["sizes"] = list(self.sizes)
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name in RUNTIME_FIELDS or (changed_only and v == getattr(default, f.name)):
+            if f.name == "spec" or f.name in RUNTIME_FIELDS or (changed_only and v == getattr(default, f.name)):
                 continue
             out[f.name] = list(v) if isinstance(v, tuple) else v
         return out
 
     @classmethod
     def from_dict(cls, data: dict, base: "NetworkConfig | None" = None, what: str = "network") -> "NetworkConfig":
-        """``base`` (default: NetworkConfig()) with the fields of ``data`` set; an unknown field is an error naming
-        it and the known ones, and every value is validated as the constructor does."""
-        names = {f.name: f for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - set(names))
+        """``base`` (default: NetworkConfig()) with the fields of ``data`` set, in :meth:`to_dict`'s flat form:
+        NetworkConfig fields, ``sizes`` (the spec's population sizes) and any part of a NetworkSpec (replacing
+        that part of ``base``'s spec). An unknown key is an error naming it and the known ones, and every value is
+        validated as the constructors do."""
+        base = base or cls()
+        names = {f.name for f in dataclasses.fields(cls)} - {"spec"}
+        unknown = sorted(set(data) - names - set(SPEC_KEYS) - {"sizes"})
         if unknown:
             raise ConfigError(f"{what}: unknown NetworkConfig field(s) {', '.join(unknown)}; known: "
-                              f"{', '.join(names)}")
-        values = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
-        return dataclasses.replace(base or cls(), **values)
+                              f"{', '.join(sorted(names | {'sizes'}))} and the spec's {', '.join(SPEC_KEYS)}")
+        spec = base.spec
+        spec_part = {k: v for k, v in data.items() if k in SPEC_KEYS}
+        if spec_part:
+            spec = NetworkSpec.from_dict(spec_part, base=spec, what=what)
+        if "sizes" in data:
+            sizes = data["sizes"]
+            if not isinstance(sizes, (list, tuple)) or not all(
+                    isinstance(n, int) and not isinstance(n, bool) for n in sizes):
+                raise ConfigError(f"NetworkConfig.sizes = {sizes!r}: a list of {len(spec.populations)} integers in "
+                                  f"[1, 100000], one per population {', '.join(spec.names)}")
+            if len(sizes) != len(spec.populations):
+                raise ConfigError(f"NetworkConfig.sizes = {list(sizes)!r}: {len(spec.populations)} integers, one per "
+                                  f"population {', '.join(spec.names)}")
+            spec = spec.with_sizes(sizes)
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items() if k in names}
+        return dataclasses.replace(base, spec=spec, **values)
 
     @classmethod
     def load(cls, path) -> "NetworkConfig":
-        """A NetworkConfig from a TOML (``.toml``) or JSON file of any of its fields (the others keep their
-        defaults), e.g. ``sizes = [384, 88, 40, 384, 88, 40, 384]`` and ``pmat_scale = 0.5625``."""
-        import json
-        import tomllib
-        from pathlib import Path
-
-        path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as e:
-            raise ConfigError(f"--network {path}: cannot read it ({e.strerror})") from None
-        try:
-            data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-        except (tomllib.TOMLDecodeError, json.JSONDecodeError) as e:
-            raise ConfigError(f"--network {path}: not valid {'TOML' if path.suffix == '.toml' else 'JSON'} ({e})") \
-                from None
-        if not isinstance(data, dict):
-            raise ConfigError(f"--network {path}: expected a table of NetworkConfig fields")
-        return cls.from_dict(data, what=f"--network {path}")
+        """A NetworkConfig from a TOML (``.toml``) or JSON file in :meth:`to_dict`'s form (what it does not give
+        keeps its default), e.g. ``sizes = [384, 88, 40, 384, 88, 40, 384]`` and ``pmat_scale = 0.5625``, or a
+        whole network (``[[populations]]``, ``[[pathways]]``, ... as :meth:`save` writes them)."""
+        return cls.from_dict(read_table(path, "--network"), what=f"--network {path}")
 
     def save(self, path, changed_only: bool = True) -> None:
         """Write the fields (by default only those that differ from the defaults) as TOML (``.toml``) or JSON."""
@@ -265,8 +293,7 @@ class NetworkConfig:
         path = Path(path)
         data = self.to_dict(changed_only)
         if path.suffix == ".toml":
-            lines = [f"{k} = {json.dumps(v)}" for k, v in data.items()]   # numbers, strings, bools, flat arrays
-            path.write_text("\n".join(["# jaxarm NetworkConfig (fields not listed keep their defaults)", *lines]) + "\n")
+            path.write_text(to_toml(data, "jaxarm NetworkConfig (what is not listed keeps its default)"))
         else:
             path.write_text(json.dumps(data, indent=1) + "\n")
 
@@ -276,16 +303,27 @@ class NetworkConfig:
         """Positions of the P code per muscle group (``p_positions``, or n_P / 4)."""
         return self.p_positions or self.n_p // 4
 
+    @property
+    def sizes(self) -> tuple[int, ...]:
+        """Population sizes in the spec's order (the paper's: ES, IS, ISL, EM, IM, IML, P)."""
+        return self.spec.sizes
+
+    @property
+    def populations(self) -> tuple[str, ...]:
+        """Population names in global-id order (network populations, then the generator)."""
+        return self.spec.names
+
     def size(self, pop: str) -> int:
-        return self.sizes[POPULATIONS.index(pop)]
+        return self.spec.population(pop).size
 
     @property
     def n_cells(self) -> int:
-        """Network (INTF6) cells: every population but P."""
+        """Network (INTF6) cells: every population but the generator."""
         return sum(self.sizes[:-1])
 
     @property
     def n_p(self) -> int:
+        """Cells of the generator (proprioceptive) population."""
         return self.sizes[-1]
 
     @property

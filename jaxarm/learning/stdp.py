@@ -28,7 +28,7 @@ pairs only, as the original ran (BACKELIGTR = 0).
 Tagging itself happens inside the network kernels (:func:`jaxarm.network.synapses.deliver_block` and the native
 kernel), on every postsynaptic spike; this module holds the update applied at the critic's moments.
 
-Which synapses are plastic: ``Pathway.plastic`` in :data:`jaxarm.network.wiring.PATHWAYS`; their soft bounds: plast_ee_maxw
+Which synapses are plastic: ``Pathway.plastic`` in the spec (``NetworkSpec.pathways``); their soft bounds: plast_ee_maxw
 onto E cells, plast_ei_maxw onto I cells (:attr:`jaxarm.loop.ClosedLoop.plastic_tables`).
 """
 from __future__ import annotations

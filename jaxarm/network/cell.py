@@ -41,24 +41,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.config.network import NetworkConfig
+from jaxarm.config.spec import SynapsePhysics
 from jaxarm.network import surrogate
 from jaxarm.network.populations import Populations
 
-#: Reversal potentials relative to rest, mV (params.hoc L5-7).
-E_AMPA, E_NMDA, E_GABA = 65.0, 90.0, -15.0
-#: Mg block (params.hoc L4; intf6.mod rates()): B(v) = 1 / (1 + exp(-0.062 v) * MG / MG0).
-MG, MG0, MG_SLOPE = 1.6, 3.57, 0.062
-VM_MIN, VM_MAX = -90.0, 0.0
-#: Synaptic time constants (all types), ms: distal AMPA, distal NMDA, proximal GABA, distal GABA.
-TAU_AMPA, TAU_NMDA, TAU_GABA_PROX, TAU_GABA_DIST = 20.0, 300.0, 10.0, 20.0
-
-#: Per-type INTF6 parameters (params.hoc L71-136, spec §1): RMP, VTH, Vblock (mV), refrac (ms), ahpwt (mV),
-#: tauahp, tauRR (ms), RRWght.
-CELL_PARAMS = {
-    "E": dict(rmp=-65.0, vth=-40.0, vblock=-25.0, refrac=5.0, ahpwt=1.0, tauahp=400.0, taurr=8.0, rrwght=0.75),
-    "FS": dict(rmp=-63.0, vth=-40.0, vblock=-10.0, refrac=2.5, ahpwt=0.5, tauahp=50.0, taurr=1.5, rrwght=0.25),
-    "LTS": dict(rmp=-65.0, vth=-47.0, vblock=-10.0, refrac=2.5, ahpwt=0.5, tauahp=50.0, taurr=1.5, rrwght=0.25),
-}
+#: The physics every cell shares (reversal potentials, Mg block, clamp, synaptic time constants) and the cell
+#: types' INTF6 parameters come from the spec (``NetworkSpec.physics``, ``NetworkSpec.cell_types``); the paper's:
+PAPER_PHYSICS = SynapsePhysics()
 _SINCE_MAX = 2 ** 30
 
 
@@ -91,25 +80,27 @@ class CellConstants(NamedTuple):
 
 
 def cell_constants(config: NetworkConfig) -> CellConstants:
-    types = Populations(config).cell_type_of_network_cells()
+    spec = config.spec
+    types = [spec.cell_type(t) for t in Populations(config).cell_type_of_network_cells()]
     dt = config.dt_ms
+    ph = spec.physics
 
     def per_cell(f):
-        return np.array([f(CELL_PARAMS[t]) for t in types], dtype=np.float32)
+        return np.array([f(t) for t in types], dtype=np.float32)
 
-    n_ref = np.array([math.ceil(CELL_PARAMS[t]["refrac"] / dt - 1e-9) for t in types], dtype=np.int32)
-    first = np.array([math.exp(-(math.ceil(CELL_PARAMS[t]["refrac"] / dt - 1e-9) * dt - CELL_PARAMS[t]["refrac"])
-                               / CELL_PARAMS[t]["taurr"]) for t in types], dtype=np.float32)
+    n_ref = np.array([math.ceil(t.refrac_ms / dt - 1e-9) for t in types], dtype=np.int32)
+    first = np.array([math.exp(-(math.ceil(t.refrac_ms / dt - 1e-9) * dt - t.refrac_ms) / t.taurr_ms)
+                      for t in types], dtype=np.float32)
     uniform = lambda tau: np.full(len(types), math.exp(-dt / tau), np.float32)  # noqa: E731
     return CellConstants(
-        rmp=per_cell(lambda p: p["rmp"]), vth=per_cell(lambda p: p["vth"]), vblock=per_cell(lambda p: p["vblock"]),
-        ahpwt=per_cell(lambda p: p["ahpwt"]),
-        post_spike_excess=per_cell(lambda p: p["rrwght"] * (p["vblock"] - p["vth"])),
+        rmp=per_cell(lambda t: t.rmp_mv), vth=per_cell(lambda t: t.vth_mv), vblock=per_cell(lambda t: t.vblock_mv),
+        ahpwt=per_cell(lambda t: t.ahpwt_mv),
+        post_spike_excess=per_cell(lambda t: t.rrwght * (t.vblock_mv - t.vth_mv)),
         n_refractory=n_ref,
-        decay_ampa=uniform(TAU_AMPA), decay_nmda=uniform(TAU_NMDA),
-        decay_gaba_prox=uniform(TAU_GABA_PROX), decay_gaba_dist=uniform(TAU_GABA_DIST),
-        decay_ahp=per_cell(lambda p: math.exp(-dt / p["tauahp"])),
-        decay_rr=per_cell(lambda p: math.exp(-dt / p["taurr"])),
+        decay_ampa=uniform(ph.tau_ampa_ms), decay_nmda=uniform(ph.tau_nmda_ms),
+        decay_gaba_prox=uniform(ph.tau_gaba_prox_ms), decay_gaba_dist=uniform(ph.tau_gaba_dist_ms),
+        decay_ahp=per_cell(lambda t: math.exp(-dt / t.tauahp_ms)),
+        decay_rr=per_cell(lambda t: math.exp(-dt / t.taurr_ms)),
         decay_rr_first=first,
     )
 
@@ -121,28 +112,26 @@ def init_cells(n: int) -> CellState:
                      steps_since_spike=jnp.full((n,), _SINCE_MAX, jnp.int32))
 
 
-#: Largest w/E a jump may have in the sequential summation (a weight at or beyond the reversal distance saturates).
-MAX_JUMP_FRACTION = 1.0 - 1e-6
-
-
-def event_load(w, e_rev: float):
+def event_load(w, e_rev: float, max_jump_fraction: float = PAPER_PHYSICS.max_jump_fraction):
     """Load of synaptic weight(s) ``w`` (mV) on a channel with reversal distance ``e_rev`` (65 for AMPA, 15 for
     GABA), for the sequential summation of events arriving in one step: ``-e_rev * log(1 - w/e_rev)``. Loads add;
     a step's summed load L gives the jump ``(e_rev -+ V) (1 - exp(-L / e_rev))``, which for one event is exactly
     ``w (1 -+ V/e_rev)`` and for several is what the original's one-event-at-a-time jumps give (each event moves V
-    toward the reversal by the fraction w/e_rev of the remaining distance). Works on numpy and jax arrays."""
+    toward the reversal by the fraction w/e_rev of the remaining distance; ``max_jump_fraction`` caps w/e_rev, so
+    a weight at or beyond the reversal distance saturates). Works on numpy and jax arrays."""
     xp = jnp if isinstance(w, jnp.ndarray) else np
-    return -e_rev * xp.log1p(-xp.minimum(xp.asarray(w, xp.float32) / e_rev, MAX_JUMP_FRACTION))
+    return -e_rev * xp.log1p(-xp.minimum(xp.asarray(w, xp.float32) / e_rev, max_jump_fraction))
 
 
-def mg_block(v_abs):
+def mg_block(v_abs, physics: SynapsePhysics = PAPER_PHYSICS):
     """NMDA Mg-block factor of the absolute membrane potential (mV)."""
-    return 1.0 / (1.0 + jnp.exp(-MG_SLOPE * v_abs) * (MG / MG0))
+    return 1.0 / (1.0 + jnp.exp(-physics.mg_slope_per_mv * v_abs) * (physics.mg_mm / physics.mg0_mm))
 
 
 def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants,
               sequential: bool = False, on_event: bool = False, per_event_crossing: bool = False,
-              surrogate_width_mv: float = 0.0, surrogate_scale: float = 1.0):
+              surrogate_width_mv: float = 0.0, surrogate_scale: float = 1.0,
+              physics: SynapsePhysics = PAPER_PHYSICS):
     """Advance every cell by one step and apply this step's input (summed weights, mV, each (n_cells,)).
 
     ``sequential``: the AMPA and GABA inputs are summed loads (:func:`event_load`) rather than summed weights, and
@@ -151,8 +140,9 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
     input in this step (``NetworkConfig.threshold_test = "on_event"``). ``per_event_crossing``
     (``NetworkConfig.crossing = "per_event"``): a cell below threshold before this step's input and above Vblock after
     it spikes, as the original, which tests after every event, would have at the event that crossed the threshold.
-    Returns (new state, spiked (n_cells,) bool).
+    ``physics``: reversal potentials, Mg block and clamp (the spec's). Returns (new state, spiked (n_cells,) bool).
     """
+    E_AMPA, E_NMDA, E_GABA = physics.e_ampa_mv, physics.e_nmda_mv, physics.e_gaba_mv  # noqa: N806
     ampa = s.ampa * c.decay_ampa
     nmda = s.nmda * c.decay_nmda
     gaba_prox = s.gaba_prox * c.decay_gaba_prox
@@ -174,11 +164,11 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
         gaba_factor = 1.0 - v * (1.0 / E_GABA)
         gaba_prox_jump, gaba_dist_jump = gaba_prox_in * gaba_factor, gaba_dist_in * gaba_factor
     ampa = jnp.maximum(ampa + ampa_jump, 0.0)
-    nmda = jnp.where(nmda < E_NMDA, nmda + nmda_in * mg_block(c.rmp + v) * (1.0 - v * (1.0 / E_NMDA)), nmda)
+    nmda = jnp.where(nmda < E_NMDA, nmda + nmda_in * mg_block(c.rmp + v, physics) * (1.0 - v * (1.0 / E_NMDA)), nmda)
     gaba_prox = jnp.where(gaba_prox > E_GABA, jnp.minimum(gaba_prox - gaba_prox_jump, 0.0), gaba_prox)
     gaba_dist = jnp.where(gaba_dist > E_GABA, jnp.minimum(gaba_dist - gaba_dist_jump, 0.0), gaba_dist)
 
-    vm = jnp.clip(c.rmp + ampa + nmda + gaba_prox + gaba_dist + ahp, VM_MIN, VM_MAX)
+    vm = jnp.clip(c.rmp + ampa + nmda + gaba_prox + gaba_dist + ahp, physics.vm_min_mv, physics.vm_max_mv)
     crossed = (since >= c.n_refractory) & (vm > c.vth + excess)
     if on_event:
         crossed = crossed & ((ampa_in != 0.0) | (nmda_in != 0.0) | (gaba_prox_in != 0.0) | (gaba_dist_in != 0.0))
@@ -198,6 +188,8 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
     return CellState(ampa, nmda, gaba_prox, gaba_dist, ahp, excess, since), out
 
 
-def membrane_potential(s: CellState, c: CellConstants):
-    """Vm in mV (RMP + components, clamped to [-90, 0]), as the spike test sees it."""
-    return jnp.clip(c.rmp + s.ampa + s.nmda + s.gaba_prox + s.gaba_dist + s.ahp, VM_MIN, VM_MAX)
+def membrane_potential(s: CellState, c: CellConstants, physics: SynapsePhysics = PAPER_PHYSICS):
+    """Vm in mV (RMP + components, clamped to [vm_min_mv, vm_max_mv], the paper's [-90, 0]), as the spike test
+    sees it."""
+    return jnp.clip(c.rmp + s.ampa + s.nmda + s.gaba_prox + s.gaba_dist + s.ahp, physics.vm_min_mv,
+                    physics.vm_max_mv)

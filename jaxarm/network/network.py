@@ -54,7 +54,7 @@ from jaxarm.network import noise as noise_mod
 from jaxarm.network import proprio as proprio_mod
 from jaxarm.network import synapses as syn_mod
 from jaxarm.network.populations import Populations
-from jaxarm.network.wiring import PATHWAYS, SPIKE_GROUPS, Wiring, WiringLayout, make_wiring
+from jaxarm.network.wiring import Wiring, WiringLayout, make_wiring
 
 #: Pre-before-post pairing window of tagging, ms (maxplastt, main.hoc L46).
 MAX_PLAST_T_MS = 69.57
@@ -113,7 +113,8 @@ class Network:
 
     @cached_property
     def p_delay_steps(self) -> int:
-        return self.config.steps(self.layout.pathway("P->ES").delay_ms[1])
+        """Longest delay of the generator's (P's) pathways, in steps."""
+        return max(self.config.steps(pw.delay_ms[1]) for pw in self.layout.generator_pathways)
 
     @cached_property
     def n_slots(self) -> int:
@@ -126,23 +127,25 @@ class Network:
         every network to fire, at any batch size (a list holds at least min(capacity, batch share) per network)."""
         if self.config.max_passes:
             return self.config.max_passes
-        sizes = [sum(self.config.size(p) for p in g) for g in SPIKE_GROUPS]
-        shares = [min(k, s) for k, s in zip(self.config.spike_capacity, self.config.batch_spike_capacity)]
+        sizes = [sum(self.config.size(p) for p in g) for g in self.layout.spike_groups]
+        shares = [min(k, s) for k, s in zip(*self.config.group_capacities())]
         return max(math.ceil(n / s) for n, s in zip(sizes, shares))
 
     @cached_property
     def delivery_shape(self) -> syn_mod.DeliveryShape:
         lay, c = self.layout, self.config
-        slices = tuple(tuple((self.pops.start[p], self.pops.stop[p]) for p in g) for g in SPIKE_GROUPS)
-        return syn_mod.DeliveryShape(group_slices=slices, excitatory=lay.group_is_excitatory,
-                                     capacity=tuple(c.spike_capacity),
-                                     batch_share=tuple(float(x) for x in c.batch_spike_capacity), max_passes=self.max_passes, n_slots=self.n_slots,
-                                     n_cells=c.n_cells, n_plastic=lay.n_plastic, bookkeeping=c.plasticity_bookkeeping,
-                                     sequential=c.event_summation == "sequential")
+        slices = tuple(tuple((self.pops.start[p], self.pops.stop[p]) for p in g) for g in lay.spike_groups)
+        capacity, share = c.group_capacities()
+        return syn_mod.DeliveryShape(group_slices=slices, excitatory=lay.group_is_excitatory, capacity=capacity,
+                                     batch_share=tuple(float(x) for x in share), max_passes=self.max_passes,
+                                     n_slots=self.n_slots, n_cells=c.n_cells, n_plastic=lay.n_plastic,
+                                     bookkeeping=c.plasticity_bookkeeping,
+                                     sequential=c.event_summation == "sequential", physics=c.spec.physics)
 
     @cached_property
     def p_synapses(self) -> slice:
-        return self.layout.synapses("P->ES")
+        """The synapses from the generator population (P), delivered once per chunk."""
+        return self.layout.generator_synapses
 
     @cached_property
     def native_cell_floats(self) -> np.ndarray:
@@ -239,7 +242,8 @@ class Network:
             state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
             self.cell_constants, sequential=c.event_summation == "sequential",
             on_event=c.threshold_test == "on_event", per_event_crossing=c.crossing == "per_event",
-            surrogate_width_mv=c.surrogate_width_mv if self.differentiable else 0.0, surrogate_scale=c.surrogate_scale)
+            surrogate_width_mv=c.surrogate_width_mv if self.differentiable else 0.0, surrogate_scale=c.surrogate_scale,
+            physics=c.spec.physics)
         p, p_spiked = proprio_mod.p_step(state.p, m)
         values = None
         if self.differentiable:
@@ -258,7 +262,8 @@ class Network:
         """Steps per delivery block: the largest divisor of :attr:`chunk_steps` that is no longer than the shortest
         network delay (so a block's spikes all arrive after it) nor the shortest refractory period (so a cell fires
         at most once per block)."""
-        d_min = min(self.config.steps(pw.delay_ms[0]) for pw in PATHWAYS if pw.pre != "P")
+        proprio = self.config.spec.proprio
+        d_min = min(self.config.steps(pw.delay_ms[0]) for pw in self.layout.pathways if pw.pre != proprio)
         limit = max(1, min(d_min, int(self.cell_constants.n_refractory.min())))
         if self.config.block_steps:
             limit = min(limit, self.config.block_steps)
@@ -308,8 +313,9 @@ class Network:
         min_interval = self.config.steps(1000.0 / self.config.p_rate_hz)
         ring = syn_mod.deliver_p_window(
             state.ring, state.p.next_step, state.p.interval_steps, state.step, n_steps, wiring, state.wgain,
-            self.p_synapses, self.pops.start["P"], proprio_mod.NEVER_STEPS, max_spikes=n_steps // min_interval + 1,
-            n_slots=self.n_slots, n_cells=self.config.n_cells, sequential=self.config.event_summation == "sequential")
+            self.p_synapses, self.pops.start[self.config.spec.proprio], proprio_mod.NEVER_STEPS,
+            max_spikes=n_steps // min_interval + 1, n_slots=self.n_slots, n_cells=self.config.n_cells,
+            sequential=self.config.event_summation == "sequential", physics=self.config.spec.physics)
         state = state._replace(ring=ring)
         full, rest = divmod(n_steps, self.block_steps)
         outs = []

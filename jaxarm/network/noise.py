@@ -1,7 +1,8 @@
 """Background Poisson input per receptor and population (spec §2), with per-group EM rates that babbling changes.
 
 Every network cell has one independent Poisson source per receptor (distal AMPA, proximal GABA, distal GABA; no
-NMDA noise). Weights (mV) and rates (Hz), spec §2 table:
+NMDA noise), with the weight and rate its population gives (``Population.noise`` of the spec). The paper's
+(``NetworkSpec.dura_bernal_2015()``; stim.hoc setwmatex, EXGain 15 included), weights (mV) and rates (Hz):
 
 =========  ===============  ============  ============
 post       AMPA-distal      GABA-prox     GABA-dist
@@ -12,7 +13,8 @@ IS, IM     4.125 @ 200      1.875 @ 100   1.875 @ 100
 ISL, IML   3.0 @ 200        1.875 @ 100   1.875 @ 100
 =========  ===============  ============  ============
 
-\\* the EM AMPA rate is set per muscle group with :func:`set_em_rates` (babbling, test noise).
+\\* the AMPA rate of the readout population (EM) is set per muscle group with :func:`set_em_rates` (babbling,
+test noise).
 
 Each step every (receptor, cell) "lane" draws the number of events in that step, N ~ Poisson(rate dt), by
 inverting the Poisson CDF with one 32-bit uniform: N = #{k < kmax : u >= CDF(k)}. ``kmax`` (config.noise_kmax) is
@@ -35,19 +37,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.config.network import NetworkConfig
-from jaxarm.network.populations import NETWORK_POPULATIONS, Populations
+from jaxarm.config.spec import NOISE_RECEPTORS  # noqa: F401 - the rows of every (3, n_cells) noise array
+from jaxarm.network.populations import Populations
 
-#: Receptor lanes of the noise (rows of every (3, n_cells) noise array).
-NOISE_RECEPTORS = ("ampa", "gaba_prox", "gaba_dist")
-#: (weight mV, rate Hz) per population and receptor (stim.hoc setwmatex, EXGain 15 included).
-NOISE_TABLE = {
-    "ES": ((3.75, 200.0), (1.875, 100.0), (1.875, 100.0)),
-    "IS": ((4.125, 200.0), (1.875, 100.0), (1.875, 100.0)),
-    "ISL": ((3.0, 200.0), (1.875, 100.0), (1.875, 100.0)),
-    "EM": ((3.9375, 200.0), (1.875, 100.0), (1.875, 100.0)),
-    "IM": ((4.125, 200.0), (1.875, 100.0), (1.875, 100.0)),
-    "IML": ((3.0, 200.0), (1.875, 100.0), (1.875, 100.0)),
-}
 DEFAULT_EM_RATE_HZ = 200.0
 
 _GOLDEN = np.uint32(0x9E3779B9)
@@ -77,24 +69,30 @@ def hash32(x):
 def noise_weights(config: NetworkConfig) -> np.ndarray:
     """(3, n_cells) float32 event weight of every lane, mV; with ``event_summation="sequential"`` the event's load
     (:func:`jaxarm.network.cell.event_load`), so k events in a step add k loads."""
-    w = np.concatenate([np.repeat(np.array([[w for w, _ in NOISE_TABLE[p]]], np.float32).T, config.size(p), 1)
-                        for p in NETWORK_POPULATIONS], axis=1)
+    spec = config.spec
+    w = np.concatenate([np.repeat(np.array([[w for w, _ in spec.population(p).noise]], np.float32).T,
+                                  config.size(p), 1) for p in spec.network_populations], axis=1)
     if config.event_summation == "sequential":
-        from jaxarm.network.cell import E_AMPA, E_GABA, event_load
-        w = np.stack([event_load(w[0], E_AMPA), event_load(w[1], -E_GABA), event_load(w[2], -E_GABA)])
+        from jaxarm.network.cell import event_load
+        ph = spec.physics
+        f = ph.max_jump_fraction
+        w = np.stack([event_load(w[0], ph.e_ampa_mv, f), event_load(w[1], -ph.e_gaba_mv, f),
+                      event_load(w[2], -ph.e_gaba_mv, f)])
     return w.astype(np.float32)
 
 
 def base_rates_hz(config: NetworkConfig) -> np.ndarray:
-    """(3, n_cells) float32 rate of every lane with the EM AMPA rate at its default (200 Hz), Hz."""
-    return np.concatenate([np.repeat(np.array([[r for _, r in NOISE_TABLE[p]]], np.float32).T, config.size(p), 1)
-                           for p in NETWORK_POPULATIONS], axis=1)
+    """(3, n_cells) float32 rate of every lane as the spec gives it (the readout's AMPA rate before babbling), Hz."""
+    spec = config.spec
+    return np.concatenate([np.repeat(np.array([[r for _, r in spec.population(p).noise]], np.float32).T,
+                                     config.size(p), 1) for p in spec.network_populations], axis=1)
 
 
 def lane_rates_hz(config: NetworkConfig, em_rates_hz) -> jnp.ndarray:
-    """(3, n_cells) rates with the EM AMPA lanes set from ``em_rates_hz`` (4,) per muscle group (id % 4)."""
+    """(3, n_cells) rates with the readout population's (EM's) AMPA lanes set from ``em_rates_hz`` (4,) per
+    muscle group (id % 4)."""
     pops = Populations(config)
-    em = pops.slice("EM")
+    em = pops.slice(config.spec.readout)
     em_cell_rates = jnp.asarray(em_rates_hz, jnp.float32)[jnp.asarray(pops.em_groups())]
     return jnp.asarray(base_rates_hz(config)).at[0, em].set(em_cell_rates)
 
@@ -130,7 +128,7 @@ def limit_em_events(config: NetworkConfig, noise: NoiseState, max_events) -> Noi
     The original's test noise to EM is a NetStim per cell with ``number = tstop * rate / 1000`` (99 for 1 s at
     99.01 Hz; spec §5): its Poisson train stops after that many events, for about half the cells before the end
     of the 1 s test. Events beyond the budget within a step are dropped, as the train's last events would be."""
-    em = Populations(config).slice("EM")
+    em = Populations(config).slice(config.spec.readout)
     return noise._replace(events_left=noise.events_left.at[0, em].set(jnp.asarray(max_events, jnp.int32)))
 
 

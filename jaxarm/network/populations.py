@@ -1,6 +1,7 @@
 """Populations, global cell ids, cell types and muscle groups, exactly as the original numbers them (spec §2).
 
-Global ids follow the order of creation in ``col.hoc``: ES 0-191, IS 192-235, ISL 236-255, EM 256-447, IM 448-491,
+Global ids follow the order of the spec's populations (:class:`jaxarm.config.spec.NetworkSpec`), which for the
+paper's network is the order of creation in ``col.hoc``: ES 0-191, IS 192-235, ISL 236-255, EM 256-447, IM 448-491,
 IML 492-511 (the 512 INTF6 "network" cells), then the proprioceptive generators P 512-703.
 
 Muscle groups (0 shoulder extensors, 1 shoulder flexors, 2 elbow extensors, 3 elbow flexors): an EM cell's group is
@@ -14,12 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from jaxarm.config.network import POPULATIONS, NetworkConfig
+from jaxarm.config.network import NetworkConfig
 
 N_GROUPS = 4
-#: INTF6 parameter set of each population (spec §1): "E" regular spiking, "FS" fast spiking, "LTS" low-threshold.
-CELL_TYPE = {"ES": "E", "IS": "FS", "ISL": "LTS", "EM": "E", "IM": "FS", "IML": "LTS"}
-NETWORK_POPULATIONS = POPULATIONS[:-1]
 
 
 @dataclass(frozen=True)
@@ -31,14 +29,14 @@ class Populations:
     @property
     def start(self) -> dict[str, int]:
         starts, s = {}, 0
-        for name, n in zip(POPULATIONS, self.config.sizes):
+        for name, n in zip(self.config.populations, self.config.sizes):
             starts[name] = s
             s += n
         return starts
 
     @property
     def stop(self) -> dict[str, int]:
-        return {name: self.start[name] + self.config.size(name) for name in POPULATIONS}
+        return {name: self.start[name] + self.config.size(name) for name in self.config.populations}
 
     def ids(self, pop: str) -> np.ndarray:
         return np.arange(self.start[pop], self.stop[pop])
@@ -47,12 +45,12 @@ class Populations:
         return slice(self.start[pop], self.stop[pop])
 
     def population_of(self) -> np.ndarray:
-        """(n_all,) int: index into POPULATIONS of every global id."""
-        return np.repeat(np.arange(len(POPULATIONS)), self.config.sizes)
+        """(n_all,) int: index into ``config.populations`` of every global id."""
+        return np.repeat(np.arange(len(self.config.populations)), self.config.sizes)
 
     def em_groups(self) -> np.ndarray:
-        """(n_EM,) muscle group of each EM cell: global id % 4."""
-        return self.ids("EM") % N_GROUPS
+        """(n_readout,) muscle group of each cell of the readout population (EM): global id % 4."""
+        return self.ids(self.config.spec.readout) % N_GROUPS
 
     def p_groups(self) -> np.ndarray:
         """(n_P,) muscle group of each P cell: index % 4."""
@@ -65,12 +63,14 @@ class Populations:
         return (np.arange(self.config.n_p) // N_GROUPS) * self.config.p_positions_per_group // per_group
 
     def cell_type_of_network_cells(self) -> np.ndarray:
-        """(n_cells,) str: "E", "FS" or "LTS" of each network cell."""
-        return np.concatenate([[CELL_TYPE[p]] * self.config.size(p) for p in NETWORK_POPULATIONS])
+        """(n_cells,) str: the cell type name of each network cell (the paper's "E", "FS", "LTS")."""
+        spec = self.config.spec
+        return np.concatenate([[spec.population(p).cell_type] * self.config.size(p)
+                               for p in spec.network_populations])
 
     def population_rates_hz(self, spike_counts, duration_ms: float) -> dict[str, float]:
         """Mean rate of every population, Hz, from per-cell spike counts ``(..., n_all)`` over ``duration_ms``
         (averaged over any leading axes, e.g. networks)."""
         counts = np.asarray(spike_counts, dtype=np.float64)
         counts = counts.reshape(-1, counts.shape[-1])
-        return {p: float(counts[:, self.slice(p)].mean() * 1000.0 / duration_ms) for p in POPULATIONS}
+        return {p: float(counts[:, self.slice(p)].mean() * 1000.0 / duration_ms) for p in self.config.populations}

@@ -39,7 +39,7 @@ def init_readout(config: NetworkConfig) -> ReadoutState:
 
 def em_group_counts(config: NetworkConfig, counts):
     """(4,) EM spikes per muscle group from per-cell counts (..., n_all) (or (..., n_cells))."""
-    em = jnp.asarray(counts)[..., Populations(config).slice("EM")]
+    em = jnp.asarray(counts)[..., Populations(config).slice(config.spec.readout)]
     # a one-hot product rather than a scatter-add: XLA:CPU makes a float scatter-add deterministic by sorting its
     # indices (~5 % of a training step in a profile; integer counts are exact in float32 either way)
     one_hot = np.eye(N_GROUPS, dtype=np.float32)[Populations(config).em_groups()]
@@ -64,6 +64,6 @@ def excitation(config: NetworkConfig, state: ReadoutState, v_em_max=V_EM_MAX, wi
     t_ms = state.pushes.astype(jnp.float32) * config.interface_ms
     total = jnp.sum(jnp.where(rows[:, None], state.bins, 0.0), axis=0)
     if config.readout_em_reference:
-        total = total * (config.readout_em_reference / config.size("EM"))
+        total = total * (config.readout_em_reference / config.size(config.spec.readout))
     u = jnp.where(t_ms >= jnp.asarray(window_ms) + lag_ms, total / v_em_max, 0.0)
     return jnp.clip(u, 0.0, 1.0) if config.readout_clip else u

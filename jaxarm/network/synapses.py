@@ -10,7 +10,7 @@ period, so every spike of a block still arrives after the block, and a cell fire
 cells advance L steps reading the ring, remembering the step of each cell's spike; then the block's spikes are
 delivered, each at its own spike step + delay — exactly what per-step delivery would do, with L times fewer spike
 lists, and lists sized for a block rather than for a step. Work is proportional to the spike-list lengths, never to
-the number of synapses. For each spike group (ES; EM; inhibitory cells, :data:`jaxarm.network.wiring.SPIKE_GROUPS`):
+the number of synapses. For each spike group (``NetworkSpec.spike_groups``; the paper's ES; EM; inhibitory cells):
 
 1. the spike list: ``lax.top_k`` of the group's "fired in this block" vector gives at most K cells; unused entries
    point to the group's "no spike" row, whose synapses have weight 0. Under ``vmap`` the list is one for the whole
@@ -52,7 +52,8 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm.config.validate import ConfigError
-from jaxarm.network.cell import E_AMPA, E_GABA, event_load
+from jaxarm.config.spec import SynapsePhysics
+from jaxarm.network.cell import PAPER_PHYSICS, event_load
 from jaxarm.network.wiring import DELAY_BITS, N_CHANNELS, GroupTables, Wiring
 
 #: ``pdope`` of an untagged synapse and last spike time of a cell that has not fired in this run, ms
@@ -98,6 +99,7 @@ class DeliveryShape(NamedTuple):
     n_plastic: int
     bookkeeping: bool
     sequential: bool = False     # AMPA/GABA weights enter the ring as loads (jaxarm.network.cell.event_load)
+    physics: SynapsePhysics = PAPER_PHYSICS   # reversal potentials and the jump cap of those loads
 
 
 def list_length(shape: DeliveryShape, g: int, n_networks: int) -> int:
@@ -150,7 +152,8 @@ def _deliver_rows(ring, pdope_ms, net, cell, s, value, last_spike_ms, prev_spike
     syn = _row(tables.out_syn, net, cell, tables_batched)
     w = _row(tables.out_weight, net, cell, tables_batched) * wgain.at[net[:, None], syn].get(mode="clip")
     if shape.sequential:
-        w = event_load(w, E_AMPA if shape.excitatory[g] else -E_GABA)
+        ph = shape.physics
+        w = event_load(w, ph.e_ampa_mv if shape.excitatory[g] else -ph.e_gaba_mv, ph.max_jump_fraction)
     if value is not None:
         w = w * value[:, None]
     delay = packed & ((1 << DELAY_BITS) - 1)
@@ -281,12 +284,13 @@ def deliver_block(ring, pdope_ms, counters: Counters, spike_step, last_spike_ms,
 
 def deliver_p_window(ring, next_step, interval_steps, first_step, n_steps: int, wiring: Wiring, wgain, p_synapses: slice,
                      p_start_id: int, never: int, *, max_spikes: int, n_slots: int, n_cells: int,
-                     sequential: bool = False):
+                     sequential: bool = False, physics: SynapsePhysics = PAPER_PHYSICS):
     """Write the P -> ES input of every P spike in steps (first_step, first_step + n_steps] into the ring.
 
     ``next_step``/``interval_steps``: (n_P,) P train state at ``first_step`` (intervals do not change inside the
-    window). ``p_synapses``: the static slice of the P -> ES synapses. ``sequential``: write AMPA loads
-    (:func:`jaxarm.network.cell.event_load`) instead of weights. ``max_spikes``: most spikes one train can
+    window). ``p_synapses``: the static slice of the synapses from P (the generator population; the paper's
+    P -> ES). ``sequential``: write AMPA loads (:func:`jaxarm.network.cell.event_load`, with ``physics``) instead
+    of weights. ``max_spikes``: most spikes one train can
     have in the window (n_steps // shortest interval + 1). Needs n_slots >= n_steps + the P delay.
     """
     pre = wiring.pre[p_synapses] - p_start_id
@@ -294,7 +298,7 @@ def deliver_p_window(ring, next_step, interval_steps, first_step, n_steps: int, 
     delay, target = wiring.delay_steps[p_synapses], wiring.target[p_synapses]
     w = wiring.weight[p_synapses] * wgain[p_synapses]
     if sequential:
-        w = event_load(w, E_AMPA)
+        w = event_load(w, physics.e_ampa_mv, physics.max_jump_fraction)
     w_nmda = wiring.nmda[p_synapses]
     last = first_step + n_steps
     spike = nxt

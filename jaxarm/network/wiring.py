@@ -7,7 +7,7 @@ in the original). Delays are uniform in [3, 5] ms from E and LTS cells (distal),
 
 Layout (``Wiring``, every array may carry leading batch axes under ``vmap``):
 
-* Synapses are numbered pathway by pathway in :data:`PATHWAYS` order, and inside a pathway post-cell major:
+* Synapses are numbered pathway by pathway in the spec's order (``NetworkSpec.pathways``), and inside a pathway post-cell major:
   synapse ``offset + i * in_degree + j`` is the j-th input of the i-th cell of the post population. So for any
   per-synapse array ``a`` of shape (n_syn,), ``layout.view(a, "ES->EM")`` is the (n_post, in_degree) per-post-cell
   block of that pathway (no copy semantics needed: a static slice and reshape). The eight plastic pathways come
@@ -17,18 +17,18 @@ Layout (``Wiring``, every array may carry leading batch axes under ``vmap``):
   ``target``: flat index ``channel * n_cells + post`` into one ring-buffer slot (channels: 0 AMPA-distal,
   1 NMDA-distal, 2 GABA-proximal, 3 GABA-distal); ``packed``: ``target << 10 | delay_steps`` (one gather fetches
   both on the hot path).
-* Delivery tables, one :class:`GroupTables` per spike group (:data:`SPIKE_GROUPS`: ES; EM; the four inhibitory
-  populations), row r = the r-th cell of the group, plus a last all-padding row for "no spike": ``out_syn`` the
+* Delivery tables, one :class:`GroupTables` per spike group (``NetworkSpec.spike_groups``; the paper's: ES; EM; the
+  four inhibitory populations), row r = the r-th cell of the group, plus a last all-padding row for "no spike": ``out_syn`` the
   synapse ids the cell projects to (padded with the dummy synapse n_syn), and copies of what delivery needs per
   synapse in the same layout, ``out_packed`` (target << 10 | delay), ``out_weight``, ``out_nmda``, so the hot path
   reads whole rows (cheap) instead of single elements. ``in_plastic`` lists the plastic synapses onto the cell
   (padded with n_plastic) and ``in_plastic_pre`` their presynaptic ids (padded with n_all, a cell that never fires),
-  for tagging. P -> ES synapses are in no table: P trains are known in advance and are delivered once per chunk of
-  steps (:func:`jaxarm.network.synapses.deliver_p_window`). Grouping keeps each table as narrow as its cells need
+  for tagging. Synapses from the generator population (the paper's P -> ES) are in no table: its trains are known
+  in advance and are delivered once per chunk of steps (:func:`jaxarm.network.synapses.deliver_p_window`). Grouping keeps each table as narrow as its cells need
   (EM cells project to ~46 cells, inhibitory ones to ~135; ES cells have 13 plastic inputs, inhibitory ones ~100).
 * ``out_overflow``: synapses that did not fit ``out_capacity`` (must be 0; counted, never silent).
 
-Weights are the spec's table (base wmat x pathway gain, spec §2); NMDA = NMAMR (0.1) x AMPA.
+Weights are the spec's table (base wmat x pathway gain, spec §2); NMDA = ``nmda_ampa_ratio`` (NMAMR, 0.1) x AMPA.
 """
 from __future__ import annotations
 
@@ -41,75 +41,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.config.network import POPULATIONS, NetworkConfig
-from jaxarm.config.validate import ConfigError
-from jaxarm.network.populations import CELL_TYPE, Populations
+from jaxarm.config.network import NetworkConfig
+from jaxarm.config.spec import Pathway
+from jaxarm.network.populations import Populations
 
 #: Receptor channels of the per-cell synaptic input rows.
 AMPA, NMDA, GABA_PROX, GABA_DIST = 0, 1, 2, 3
 N_CHANNELS = 4
-NMDA_AMPA_RATIO = 0.1  # NMAMR (spec §2)
+#: The channel a presynaptic cell's output drives (``CellType.output``).
+CHANNEL_OF_OUTPUT = {"excitatory": AMPA, "inhibitory_proximal": GABA_PROX, "inhibitory_distal": GABA_DIST}
 DELAY_BITS = 10
-
-
-@dataclass(frozen=True)
-class Pathway:
-    pre: str
-    post: str
-    pmat: float        # raw connection density (spec §2 table)
-    weight: float      # AMPA weight (E presyn) or GABA weight (I presyn), mV
-    delay_ms: tuple[float, float]
-    plastic: bool
-
-    @property
-    def name(self) -> str:
-        return f"{self.pre}->{self.post}"
-
-    @property
-    def presyn_type(self) -> str:
-        return "E" if self.pre == "P" else CELL_TYPE[self.pre]
-
-    @property
-    def channel(self) -> int:
-        return {"E": AMPA, "FS": GABA_PROX, "LTS": GABA_DIST}[self.presyn_type]
-
-    @property
-    def nmda_weight(self) -> float:
-        return NMDA_AMPA_RATIO * self.weight if self.presyn_type == "E" else 0.0
-
-
-_DISTAL = (3.0, 5.0)
-_SOMA = (1.8, 2.2)
-#: Every pathway of the original (spec §2 table), plastic ones first. EM -> IS/ISL is absent (EMISFeedBack = 0).
-PATHWAYS: tuple[Pathway, ...] = (
-    Pathway("ES", "ES", 0.05, 1.98, _DISTAL, True),
-    Pathway("ES", "IS", 0.43, 1.15, _DISTAL, True),
-    Pathway("ES", "ISL", 0.51, 0.575, _DISTAL, True),
-    Pathway("ES", "EM", 0.30, 2.64, _DISTAL, True),
-    Pathway("EM", "EM", 0.05, 1.782, _DISTAL, True),
-    Pathway("EM", "IM", 0.43, 1.15, _DISTAL, True),
-    Pathway("EM", "IML", 0.51, 0.575, _DISTAL, True),
-    Pathway("EM", "ES", 0.01, 0.72, _DISTAL, True),
-    Pathway("ES", "IM", 0.05, 1.15, _DISTAL, False),
-    Pathway("ES", "IML", 0.05, 0.575, _DISTAL, False),
-    Pathway("IS", "ES", 0.44, 4.5, _SOMA, False),
-    Pathway("IS", "IS", 0.62, 4.5, _SOMA, False),
-    Pathway("IS", "ISL", 0.34, 4.5, _SOMA, False),
-    Pathway("ISL", "ES", 0.35, 1.245, _DISTAL, False),
-    Pathway("ISL", "IS", 0.53, 2.25, _DISTAL, False),
-    Pathway("ISL", "ISL", 0.09, 4.5, _DISTAL, False),
-    Pathway("IM", "EM", 0.44, 9.0, _SOMA, False),
-    Pathway("IM", "IM", 0.62, 4.5, _SOMA, False),
-    Pathway("IM", "IML", 0.34, 4.5, _SOMA, False),
-    Pathway("IML", "EM", 0.35, 2.49, _DISTAL, False),
-    Pathway("IML", "IM", 0.53, 2.25, _DISTAL, False),
-    Pathway("IML", "IML", 0.09, 4.5, _DISTAL, False),
-    Pathway("P", "ES", 0.1, 4.0, (1.0, 1.0), False),
-)
-
-
-#: Spike groups: populations whose spikes share one spike list and one set of delivery tables.
-SPIKE_GROUPS: tuple[tuple[str, ...], ...] = (("ES",), ("EM",), ("IS", "ISL", "IM", "IML"))
 
 
 class GroupTables(NamedTuple):
@@ -133,36 +74,21 @@ class Wiring(NamedTuple):
     nmda: jnp.ndarray           # (n_syn + 1,) NMDA base weight, mV
     target: jnp.ndarray         # (n_syn + 1,) channel * n_cells + post
     packed: jnp.ndarray         # (n_syn + 1,) target << 10 | delay_steps
-    groups: tuple               # GroupTables per SPIKE_GROUPS entry
+    groups: tuple               # GroupTables per spike group (NetworkSpec.spike_groups)
     out_overflow: jnp.ndarray   # () synapses left out of the delivery tables (must be 0)
-
-
-def check_pathway_order(pathways) -> None:
-    """The order the kernels and the learning rule rely on, checked: the plastic pathways first (plastic synapse k
-    is synapse k), then the fixed ones, and P -> ES, the only pathway from P (delivered from precomputed trains),
-    last. Raises ConfigError naming the first pathway out of place."""
-    names = [pw.name for pw in pathways]
-    n_plastic = sum(pw.plastic for pw in pathways)
-    for i, pw in enumerate(pathways):
-        if pw.plastic != (i < n_plastic):
-            raise ConfigError(f"pathway {pw.name} (position {i}): the {n_plastic} plastic pathways must come first")
-        if (pw.pre == "P") != (i == len(pathways) - 1) or (pw.pre == "P" and pw.post != "ES"):
-            raise ConfigError(f"pathway {pw.name} (position {i}): P -> ES must be the last pathway and the only one "
-                              f"from P; got {', '.join(names)}")
 
 
 @dataclass(frozen=True)
 class WiringLayout:
     """Static shape of the wiring for a configuration (Python ints only; hashable).
 
-    Construction checks the pathway order (:func:`check_pathway_order`) and that every index the kernels form fits
-    int32: ``target << DELAY_BITS`` (4 n_cells << 10 < 2**31, so at most 524,287 network cells), the synapse ids,
+    The spec has checked the pathway order (plastic first, the generator's last); construction checks that every
+    index the kernels form fits int32: ``target << DELAY_BITS`` (4 n_cells << 10 < 2**31, so at most 524,287 network cells), the synapse ids,
     and a delay of 5 ms in DELAY_BITS bits."""
 
     config: NetworkConfig
 
     def __post_init__(self):
-        check_pathway_order(PATHWAYS)
         c = self.config
         if (N_CHANNELS * c.n_cells) << DELAY_BITS >= 2 ** 31:
             raise ConfigError(f"NetworkConfig.sizes = {c.sizes}: {c.n_cells} network cells; at most "
@@ -170,7 +96,7 @@ class WiringLayout:
                               f"{DELAY_BITS} | delay) synapse words")
         if self.n_syn + 1 >= 2 ** 31:
             raise ConfigError(f"NetworkConfig.sizes = {c.sizes}: {self.n_syn} synapses do not fit int32 ids")
-        if c.steps(max(pw.delay_ms[1] for pw in PATHWAYS)) >= 1 << DELAY_BITS:
+        if c.steps(max(pw.delay_ms[1] for pw in self.pathways)) >= 1 << DELAY_BITS:
             raise ConfigError(f"NetworkConfig.dt_ms = {c.dt_ms}: the longest delay does not fit {DELAY_BITS} bits "
                               "of steps")
 
@@ -178,37 +104,63 @@ class WiringLayout:
     def pops(self) -> Populations:
         return Populations(self.config)
 
+    @property
+    def pathways(self) -> tuple[Pathway, ...]:
+        return self.config.spec.pathways
+
+    @property
+    def spike_groups(self) -> tuple[tuple[str, ...], ...]:
+        return self.config.spec.spike_groups
+
+    def channel(self, pw: Pathway) -> int:
+        """The receptor channel pathway ``pw`` drives (from its presynaptic population's output)."""
+        return CHANNEL_OF_OUTPUT[self.config.spec.output(pw.pre)]
+
+    def nmda_weight_mv(self, pw: Pathway) -> float:
+        """NMDA base weight of pathway ``pw``, mV: nmda_ampa_ratio x AMPA for an excitatory presynaptic type, else 0."""
+        if self.channel(pw) != AMPA:
+            return 0.0
+        return self.config.spec.physics.nmda_ampa_ratio * pw.weight_mv
+
+    @cached_property
+    def generator_pathways(self) -> tuple[Pathway, ...]:
+        """The pathways from the generator population (last in the synapse order)."""
+        return tuple(pw for pw in self.pathways if pw.pre == self.config.spec.proprio)
+
+    @cached_property
+    def generator_synapses(self) -> slice:
+        """The synapse indices of every pathway from the generator population (one contiguous block, last)."""
+        return slice(self.n_network_syn, self.n_syn)
+
     @cached_property
     def in_degree(self) -> dict[str, int]:
         c = self.config
-        return {pw.name: int(0.5 + pw.pmat * c.pmat_scale * c.size(pw.pre)) for pw in PATHWAYS}
+        return {pw.name: int(0.5 + pw.pmat * c.pmat_scale * c.size(pw.pre)) for pw in self.pathways}
 
     @cached_property
     def offset(self) -> dict[str, int]:
         out, s = {}, 0
-        for pw in PATHWAYS:
+        for pw in self.pathways:
             out[pw.name] = s
             s += self.config.size(pw.post) * self.in_degree[pw.name]
         return out
 
     @cached_property
     def n_syn(self) -> int:
-        return self.synapses(PATHWAYS[-1].name).stop
+        return self.synapses(self.pathways[-1].name).stop
 
     @cached_property
     def n_plastic(self) -> int:
-        return sum(self.config.size(pw.post) * self.in_degree[pw.name] for pw in PATHWAYS if pw.plastic)
+        return sum(self.config.size(pw.post) * self.in_degree[pw.name] for pw in self.pathways if pw.plastic)
 
     @cached_property
     def n_network_syn(self) -> int:
-        """Synapses between network cells (everything but P -> ES)."""
-        return sum(self.config.size(pw.post) * self.in_degree[pw.name] for pw in PATHWAYS if pw.pre != "P")
+        """Synapses between network cells (everything but the generator's pathways)."""
+        return sum(self.config.size(pw.post) * self.in_degree[pw.name] for pw in self.pathways
+                   if pw.pre != self.config.spec.proprio)
 
     def pathway(self, name: str) -> Pathway:
-        for pw in PATHWAYS:
-            if pw.name == name:
-                return pw
-        raise KeyError(f"no pathway {name!r}; known: {', '.join(p.name for p in PATHWAYS)}")
+        return self.config.spec.pathway(name)
 
     def synapses(self, name: str) -> slice:
         """The synapse indices of pathway ``name`` (its contiguous block of the per-synapse arrays)."""
@@ -221,22 +173,22 @@ class WiringLayout:
         return a.reshape(a.shape[:-1] + (self.config.size(self.pathway(name).post), self.in_degree[name]))
 
     def pathway_of_synapse(self) -> np.ndarray:
-        """(n_syn,) index into PATHWAYS of every synapse."""
-        return np.repeat(np.arange(len(PATHWAYS)),
-                         [self.config.size(pw.post) * self.in_degree[pw.name] for pw in PATHWAYS])
+        """(n_syn,) index into the spec's pathways of every synapse."""
+        return np.repeat(np.arange(len(self.pathways)),
+                         [self.config.size(pw.post) * self.in_degree[pw.name] for pw in self.pathways])
 
     @cached_property
     def group_cells(self) -> tuple[np.ndarray, ...]:
         """Global ids of the cells of each spike group (ascending)."""
-        return tuple(np.concatenate([self.pops.ids(p) for p in g]) for g in SPIKE_GROUPS)
+        return tuple(np.concatenate([self.pops.ids(p) for p in g]) for g in self.spike_groups)
 
     @cached_property
     def group_is_excitatory(self) -> tuple[bool, ...]:
-        return tuple(all(CELL_TYPE[p] == "E" for p in g) for g in SPIKE_GROUPS)
+        return tuple(all(self.config.spec.output(p) == "excitatory" for p in g) for g in self.spike_groups)
 
     def mean_out_degree(self, pre: str) -> float:
         return sum(self.config.size(pw.post) * self.in_degree[pw.name] / self.config.size(pre)
-                   for pw in PATHWAYS if pw.pre == pre)
+                   for pw in self.pathways if pw.pre == pre)
 
     @cached_property
     def out_capacity(self) -> tuple[int, ...]:
@@ -244,16 +196,16 @@ class WiringLayout:
         out-degree in the group (out-degrees are sums of independent draws, so exceeding this has probability
         ~1e-9 per cell; it would be counted in ``Wiring.out_overflow``)."""
         if self.config.out_capacity:
-            return (self.config.out_capacity,) * len(SPIKE_GROUPS)
+            return (self.config.out_capacity,) * len(self.spike_groups)
         return tuple(int(math.ceil(max(m + 6.0 * math.sqrt(max(m, 1.0)) for m in map(self.mean_out_degree, g))))
-                     for g in SPIKE_GROUPS)
+                     for g in self.spike_groups)
 
     @cached_property
     def plastic_inputs(self) -> tuple[np.ndarray, ...]:
         """Per spike group, the static (n_group + 1, width) table of plastic synapse ids onto each cell, padded
         with n_plastic (the draw only decides which presynaptic cell each one has)."""
         rows: dict[int, list[int]] = {}
-        for pw in PATHWAYS:
+        for pw in self.pathways:
             if not pw.plastic:
                 continue
             k, start = self.in_degree[pw.name], self.pops.start[pw.post]
@@ -289,13 +241,14 @@ def _draw_synapses(config: NetworkConfig, key):
     # Two draws and one top_k for everything (threefry and sorts compile slowly on CPU, so not one per pathway):
     # every (pathway, post cell) row gets uniform keys for its candidate partners and keeps the k largest, which is
     # k distinct partners drawn uniformly; every synapse gets a uniform delay.
-    pools = [config.size(pw.pre) - (pw.pre == pw.post and config.self_connections == "exclude") for pw in PATHWAYS]
-    for pw, pool in zip(PATHWAYS, pools):
+    pathways = layout.pathways
+    pools = [config.size(pw.pre) - (pw.pre == pw.post and config.self_connections == "exclude") for pw in pathways]
+    for pw, pool in zip(pathways, pools):
         if layout.in_degree[pw.name] > pool:
             raise ValueError(f"pathway {pw.name}: in-degree {layout.in_degree[pw.name]} exceeds the {pool} "
                              "available presynaptic cells")
     width, k_max = max(pools), max(layout.in_degree.values())
-    rows = np.concatenate([[0], np.cumsum([config.size(pw.post) for pw in PATHWAYS])])
+    rows = np.concatenate([[0], np.cumsum([config.size(pw.post) for pw in pathways])])
     valid = np.zeros((rows[-1], width), bool)
     for index, pool in enumerate(pools):
         valid[rows[index]:rows[index + 1], :pool] = True
@@ -304,7 +257,7 @@ def _draw_synapses(config: NetworkConfig, key):
     chosen = jax.lax.top_k(keys, k_max)[1]
     delay_u = jax.random.uniform(k_delay, (layout.n_syn,))
     pres, delays = [], []
-    for index, (pw, pool) in enumerate(zip(PATHWAYS, pools)):
+    for index, (pw, pool) in enumerate(zip(pathways, pools)):
         n_post, k = config.size(pw.post), layout.in_degree[pw.name]
         local = chosen[rows[index]:rows[index + 1], :k]
         if pool < config.size(pw.pre):  # self excluded: candidate c >= own index stands for c + 1
@@ -323,13 +276,13 @@ def _build_wiring(config: NetworkConfig, pre_syn, delay_ms) -> Wiring:
     pops = layout.pops
     dt = config.dt_ms
     posts, weights, nmdas, targets = [], [], [], []
-    for pw in PATHWAYS:
+    for pw in layout.pathways:
         n_post, k = config.size(pw.post), layout.in_degree[pw.name]
         post = jnp.asarray(np.repeat(np.arange(n_post, dtype=np.int32) + pops.start[pw.post], k))
         posts.append(post)
-        weights.append(jnp.full((n_post * k,), pw.weight, jnp.float32))
-        nmdas.append(jnp.full((n_post * k,), pw.nmda_weight, jnp.float32))
-        targets.append(post + pw.channel * config.n_cells)
+        weights.append(jnp.full((n_post * k,), pw.weight_mv, jnp.float32))
+        nmdas.append(jnp.full((n_post * k,), layout.nmda_weight_mv(pw), jnp.float32))
+        targets.append(post + layout.channel(pw) * config.n_cells)
     delays = [jnp.maximum(jnp.round(jnp.asarray(delay_ms, jnp.float32) / dt), 1).astype(jnp.int32)]
     pres = [jnp.asarray(pre_syn, jnp.int32)]
     n_all = config.n_all
@@ -341,7 +294,7 @@ def _build_wiring(config: NetworkConfig, pre_syn, delay_ms) -> Wiring:
     nmda = jnp.concatenate(nmdas + [jnp.zeros(1, jnp.float32)])
     target = jnp.concatenate(targets + [jnp.zeros(1, jnp.int32)])
     packed = (target << DELAY_BITS) | delay
-    n_net = layout.n_network_syn  # P -> ES (the last pathway) is delivered separately
+    n_net = layout.n_network_syn  # the generator's pathways (last) are delivered separately
     by_pre, overflow = _delivery_lists(pre[:n_net], config.n_cells, max(layout.out_capacity), layout.n_syn)
     groups = []
     for cells, width, in_plastic_np in zip(layout.group_cells, layout.out_capacity, layout.plastic_inputs):
@@ -377,9 +330,9 @@ def wiring_from_edges(config: NetworkConfig, pre, post, delay_ms) -> tuple[Wirin
     for name, ids in (("pre", pre), ("post", post)):
         if ids.size and (ids.min() < 0 or ids.max() >= config.n_all):
             raise ValueError(f"{name} ids must be in [0, {config.n_all}), got [{ids.min()}, {ids.max()}]")
-    pop_names = np.asarray(POPULATIONS)
+    pop_names = np.asarray(config.populations)
     pop_of = pops.population_of()
-    index = {(pw.pre, pw.post): i for i, pw in enumerate(PATHWAYS)}
+    index = {(pw.pre, pw.post): i for i, pw in enumerate(layout.pathways)}
     pathway = np.array([index.get((pop_names[a], pop_names[b]), -1) for a, b in zip(pop_of[pre], pop_of[post])],
                        np.int64)
     if np.any(pathway < 0):
@@ -388,7 +341,7 @@ def wiring_from_edges(config: NetworkConfig, pre, post, delay_ms) -> tuple[Wirin
                          "pathway of this network")
     # our order: pathway, then post cell; edges of one row keep their given order (stable sort)
     order = np.lexsort((post, pathway))
-    for i, pw in enumerate(PATHWAYS):
+    for i, pw in enumerate(layout.pathways):
         k = layout.in_degree[pw.name]
         counts = np.bincount(post[pathway == i] - pops.start[pw.post], minlength=config.size(pw.post))
         if np.any(counts != k):

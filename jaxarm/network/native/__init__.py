@@ -34,11 +34,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.network.wiring import DELAY_BITS
+
 if TYPE_CHECKING:  # pragma: no cover
     from jaxarm.network.network import Network, NetworkParams, State
     from jaxarm.network.wiring import Wiring
 
 TARGET = "jaxarm_network_chunk"
+#: The spec's physics (``SynapsePhysics`` fields) the kernel takes as float32 attributes of the same names.
+PHYSICS_ATTRIBUTES = ("e_ampa_mv", "e_nmda_mv", "e_gaba_mv", "mg_mm", "mg0_mm", "mg_slope_per_mv", "vm_min_mv",
+                      "vm_max_mv", "max_jump_fraction")
 SOURCE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "chunk_kernel.cc")
 CXX_FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-std=c++17", "-fPIC", "-shared", "-pthread")
 
@@ -145,6 +150,7 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
         raise RuntimeError(f"jaxarm native network kernel unavailable: {why}")
     c = net.config
     lay = net.layout
+    ph = c.spec.physics
     ps = net.p_synapses
     s = state
     cells = s.cells
@@ -158,7 +164,7 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
         _as(s.p.interval_steps, jnp.int32), _as(s.noise.step_seed, jnp.uint32), _as(s.noise.lane_key, jnp.uint32),
         _as(s.noise.thresholds, jnp.uint32), s.ring, s.wgain, s.pdope_ms, s.last_spike_ms, s.prev_spike_ms,
         _as(s.spike_count, jnp.int32), _as(params.max_plast_t_ms, jnp.float32),
-        _as(wiring.pre[ps] - net.pops.start["P"], jnp.int32), _as(wiring.delay_steps[ps], jnp.int32),
+        _as(wiring.pre[ps] - net.pops.start[c.spec.proprio], jnp.int32), _as(wiring.delay_steps[ps], jnp.int32),
         _as(wiring.target[ps], jnp.int32), _as(wiring.weight[ps], jnp.float32), _as(wiring.nmda[ps], jnp.float32),
         jnp.asarray(net.native_cell_floats), jnp.asarray(net.cell_constants.n_refractory, jnp.int32),
         jnp.asarray(net.noise_weights), jnp.asarray(net.native_cell_group), jnp.asarray(net.native_cell_row),
@@ -176,7 +182,8 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
                 p_syn_offset=np.int64(ps.start), sequential=np.int64(c.event_summation == "sequential"),
                 on_event=np.int64(c.threshold_test == "on_event"), per_event=np.int64(c.crossing == "per_event"),
                 dt_ms=np.float32(c.dt_ms), excitatory=np.asarray(lay.group_is_excitatory, np.int64),
-                n_threads=np.int64(c.native_threads))
+                n_threads=np.int64(c.native_threads), delay_bits=np.int64(DELAY_BITS),
+                **{name: np.float32(getattr(ph, name)) for name in PHYSICS_ATTRIBUTES})
     (step, ampa, nmda, gprox, gdist, ahp, excess, since, p_next, ring, pdope, last, prev, count, events_left,
      spikes) = outs
     cells = cells._replace(ampa=ampa, nmda=nmda, gaba_prox=gprox, gaba_dist=gdist, ahp=ahp, vthc_excess=excess,

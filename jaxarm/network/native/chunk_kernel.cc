@@ -30,14 +30,11 @@ namespace ffi = xla::ffi;
 
 namespace {
 
-constexpr float kEAmpa = 65.0f, kENmda = 90.0f, kEGaba = -15.0f;
-constexpr float kMg = 1.6f, kMg0 = 3.57f, kMgSlope = 0.062f;
-constexpr float kVmMin = -90.0f, kVmMax = 0.0f;
+// The physics (reversal potentials, Mg block, clamp, jump cap) and the delay packing come from the network spec as
+// attributes (Attrs), so no constant of the model is written both here and in Python.
 constexpr int32_t kSinceMax = 1 << 30;
 constexpr int32_t kNever = 1 << 30;
 constexpr uint32_t kGolden = 0x9E3779B9u;
-constexpr float kMaxJumpFraction = 1.0f - 1e-6f;
-constexpr int kDelayBits = 10;
 
 // Inputs, in order (per-network shapes; see jaxarm/network/native/__init__.py).
 enum In {
@@ -62,8 +59,8 @@ inline uint32_t hash32(uint32_t x) {
   return x ^ (x >> 16);
 }
 
-inline float event_load(float w, float e_rev) {
-  return -e_rev * std::log1p(-std::min(w / e_rev, kMaxJumpFraction));
+inline float event_load(float w, float e_rev, float max_jump_fraction) {
+  return -e_rev * std::log1p(-std::min(w / e_rev, max_jump_fraction));
 }
 
 struct View {  // one input or output: base pointer, per-network element count, element size, batch strides
@@ -76,6 +73,9 @@ struct View {  // one input or output: base pointer, per-network element count, 
 struct Attrs {
   int64_t n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, per_event, exc[8];
   float dt_ms;
+  // NetworkSpec.physics, mV and 1/mV
+  float e_ampa, e_nmda, e_gaba, mg, mg0, mg_slope, vm_min, vm_max, max_jump_fraction;
+  int64_t delay_bits;
 };
 
 template <typename T>
@@ -154,9 +154,10 @@ void has_input(int64_t n, const float* __restrict__ in, uint8_t* __restrict__ ou
 void threshold(int64_t n, const float* __restrict__ a, const float* __restrict__ b, const float* __restrict__ c,
                const float* __restrict__ d, const float* __restrict__ e, const float* __restrict__ rmp,
                const int32_t* __restrict__ since, const int32_t* __restrict__ n_ref, const float* __restrict__ vth,
-               const float* __restrict__ excess, const float* __restrict__ vblock, uint8_t* __restrict__ out) {
+               const float* __restrict__ excess, const float* __restrict__ vblock, float vm_min, float vm_max,
+               uint8_t* __restrict__ out) {
   for (int64_t i = 0; i < n; ++i) {
-    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], kVmMin), kVmMax);
+    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], vm_min), vm_max);
     out[i] = (since[i] >= n_ref[i]) & (vm > vth[i] + excess[i]) & (vm <= vblock[i]);
   }
 }
@@ -168,9 +169,9 @@ void crossed_per_event(int64_t n, const float* __restrict__ a, const float* __re
                        const float* __restrict__ rmp, const float* __restrict__ v,
                        const int32_t* __restrict__ since, const int32_t* __restrict__ n_ref,
                        const float* __restrict__ vth, const float* __restrict__ excess,
-                       const float* __restrict__ vblock, uint8_t* __restrict__ out) {
+                       const float* __restrict__ vblock, float vm_min, float vm_max, uint8_t* __restrict__ out) {
   for (int64_t i = 0; i < n; ++i) {
-    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], kVmMin), kVmMax);
+    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], vm_min), vm_max);
     out[i] |= (since[i] >= n_ref[i]) & (vm > vblock[i]) & (rmp[i] + v[i] <= vth[i] + excess[i]);
   }
 }
@@ -268,6 +269,11 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   const int64_t n_steps = a.n_steps;
   const float dt = a.dt_ms;
   const bool seq = a.sequential != 0;
+  const float e_ampa = a.e_ampa, e_nmda = a.e_nmda, e_gaba = a.e_gaba, jump_cap = a.max_jump_fraction;
+  const float neg_inv_ampa = -1.0f / e_ampa, inv_gaba = 1.0f / e_gaba, inv_ampa = 1.0f / e_ampa;
+  const float inv_nmda = 1.0f / e_nmda, neg_mg_slope = -a.mg_slope, mg_ratio = a.mg / a.mg0;
+  const int delay_bits = int(a.delay_bits);
+  const int32_t delay_mask = (int32_t(1) << delay_bits) - 1;
 
   // 1. P -> ES input of every P spike in (first_step, first_step + n_steps].
   {
@@ -277,7 +283,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       int64_t spike = p_next[pre];
       if (spike > last_step) continue;
       float w = p_weight[k] * wgain[a.p_syn_offset + k];
-      if (seq) w = event_load(w, kEAmpa);
+      if (seq) w = event_load(w, e_ampa, jump_cap);
       const int32_t interval = p_interval[pre];
       while (spike <= last_step) {
         if (spike > first_step) {
@@ -339,27 +345,29 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       const float v = vb[i];
       float ja, jgp, jgd;
       if (seq) {
-        ja = ampa_in != 0.0f ? (kEAmpa - v) * -std::expm1(ampa_in * (-1.0f / kEAmpa)) : 0.0f;
-        jgp = gp_in != 0.0f ? (v - kEGaba) * -std::expm1(gp_in * (1.0f / kEGaba)) : 0.0f;
-        jgd = gd_in != 0.0f ? (v - kEGaba) * -std::expm1(gd_in * (1.0f / kEGaba)) : 0.0f;
+        ja = ampa_in != 0.0f ? (e_ampa - v) * -std::expm1(ampa_in * neg_inv_ampa) : 0.0f;
+        jgp = gp_in != 0.0f ? (v - e_gaba) * -std::expm1(gp_in * inv_gaba) : 0.0f;
+        jgd = gd_in != 0.0f ? (v - e_gaba) * -std::expm1(gd_in * inv_gaba) : 0.0f;
       } else {
-        ja = ampa_in * (1.0f - v * (1.0f / kEAmpa));
-        const float gf = 1.0f - v * (1.0f / kEGaba);
+        ja = ampa_in * (1.0f - v * inv_ampa);
+        const float gf = 1.0f - v * inv_gaba;
         jgp = gp_in * gf;
         jgd = gd_in * gf;
       }
       if (ampa_in != 0.0f) ampa[i] = std::max(ampa[i] + ja, 0.0f);
-      if (nmda[i] < kENmda && nmda_in != 0.0f) {
-        const float block = 1.0f / (1.0f + std::exp(-kMgSlope * (rmp[i] + v)) * (kMg / kMg0));
-        nmda[i] = nmda[i] + nmda_in * block * (1.0f - v * (1.0f / kENmda));
+      if (nmda[i] < e_nmda && nmda_in != 0.0f) {
+        const float block = 1.0f / (1.0f + std::exp(neg_mg_slope * (rmp[i] + v)) * mg_ratio);
+        nmda[i] = nmda[i] + nmda_in * block * (1.0f - v * inv_nmda);
       }
-      if (gp_in != 0.0f && gprox[i] > kEGaba) gprox[i] = std::min(gprox[i] - jgp, 0.0f);
-      if (gd_in != 0.0f && gdist[i] > kEGaba) gdist[i] = std::min(gdist[i] - jgd, 0.0f);
+      if (gp_in != 0.0f && gprox[i] > e_gaba) gprox[i] = std::min(gprox[i] - jgp, 0.0f);
+      if (gd_in != 0.0f && gdist[i] > e_gaba) gdist[i] = std::min(gdist[i] - jgd, 0.0f);
       }
     }
     // 2e. threshold test (vectorised), then the spikes' own updates (rare)
-    threshold(n, ampa, nmda, gprox, gdist, ahp, rmp, since, n_ref, vth, excess, vblock, sb);
-    if constexpr (PerEvent) crossed_per_event(n, ampa, nmda, gprox, gdist, ahp, rmp, vb, since, n_ref, vth, excess, vblock, sb);
+    threshold(n, ampa, nmda, gprox, gdist, ahp, rmp, since, n_ref, vth, excess, vblock, a.vm_min, a.vm_max, sb);
+    if constexpr (PerEvent)
+      crossed_per_event(n, ampa, nmda, gprox, gdist, ahp, rmp, vb, since, n_ref, vth, excess, vblock, a.vm_min,
+                        a.vm_max, sb);
     if (a.on_event)   // the original tests only on an arriving event
       for (int64_t i = 0; i < n; ++i) sb[i] &= hb[i];
     fired.clear();
@@ -398,7 +406,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     for (int32_t i : fired) {
       const Tables& tb = groups[cell_group[i]];
       const bool exc = a.exc[cell_group[i]] != 0;
-      const float e_rev = exc ? kEAmpa : -kEGaba;
+      const float e_rev = exc ? e_ampa : -e_gaba;
       const int64_t r = cell_row[i];
       const int32_t* syn = tb.out_syn + r * tb.out_width;
       const int32_t* packed = tb.out_packed + r * tb.out_width;
@@ -407,9 +415,9 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       for (int64_t j = 0; j < tb.out_width; ++j) {
         if (syn[j] >= n_syn) continue;  // padding (weight 0)
         float w = wt[j] * wgain[syn[j]];
-        if (seq) w = event_load(w, e_rev);
-        const int32_t delay = packed[j] & ((1 << kDelayBits) - 1);
-        const int64_t idx = ((int64_t(m) + delay) % n_slots) * width + (packed[j] >> kDelayBits);
+        if (seq) w = event_load(w, e_rev, jump_cap);
+        const int32_t delay = packed[j] & delay_mask;
+        const int64_t idx = ((int64_t(m) + delay) % n_slots) * width + (packed[j] >> delay_bits);
         ring[idx] += w;
         if (exc) ring[idx + n] += wn[j];
       }
@@ -439,8 +447,9 @@ View view_of(const ffi::AnyBuffer& b, int base_rank, int batch_rank) {
 
 ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n_steps, int64_t n_slots,
                      int64_t p_syn_offset, int64_t sequential, int64_t on_event, int64_t per_event, float dt_ms,
-                     ffi::Span<const int64_t> excitatory,
-                     int64_t n_threads) {
+                     ffi::Span<const int64_t> excitatory, int64_t n_threads, float e_ampa_mv, float e_nmda_mv,
+                     float e_gaba_mv, float mg_mm, float mg0_mm, float mg_slope_per_mv, float vm_min_mv,
+                     float vm_max_mv, float max_jump_fraction, int64_t delay_bits) {
   const int64_t n_groups = int64_t(excitatory.size());
   const int64_t n_in = kGroupTables + kTablesPerGroup * n_groups;
   if (int64_t(args.size()) != n_in || int64_t(rets.size()) != kNumOut || n_groups > 8)
@@ -467,7 +476,9 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
     if (r.has_error()) return r.error();
     out[k] = view_of(**r, kBaseRankOut[k], batch_rank);
   }
-  Attrs a{n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, per_event, {0}, dt_ms};
+  Attrs a{n_steps,   n_slots,   p_syn_offset, n_groups, sequential, on_event,        per_event, {0},
+          dt_ms,     e_ampa_mv, e_nmda_mv,    e_gaba_mv, mg_mm,     mg0_mm,   mg_slope_per_mv, vm_min_mv,
+          vm_max_mv, max_jump_fraction, delay_bits};
   for (int64_t g = 0; g < n_groups; ++g) a.exc[g] = excitatory[g];
   int64_t total = 1;
   for (int64_t b : batch) total *= b;
@@ -510,4 +521,14 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
                                   .Attr<int64_t>("per_event")
                                   .Attr<float>("dt_ms")
                                   .Attr<ffi::Span<const int64_t>>("excitatory")
-                                  .Attr<int64_t>("n_threads"));
+                                  .Attr<int64_t>("n_threads")
+                                  .Attr<float>("e_ampa_mv")
+                                  .Attr<float>("e_nmda_mv")
+                                  .Attr<float>("e_gaba_mv")
+                                  .Attr<float>("mg_mm")
+                                  .Attr<float>("mg0_mm")
+                                  .Attr<float>("mg_slope_per_mv")
+                                  .Attr<float>("vm_min_mv")
+                                  .Attr<float>("vm_max_mv")
+                                  .Attr<float>("max_jump_fraction")
+                                  .Attr<int64_t>("delay_bits"));
