@@ -8,7 +8,7 @@ Needs the ``bench`` extra (``pip install -e '.[bench]'``: brian2) and a C++ comp
 What is simulated: one jaxarm network under a fixed drive, no plasticity — the same 512 INTF6 cells, the same
 synapses (taken from ``Network(config).make_wiring(jax.random.key(seed))``: pre, post, delay, weight, NMDA weight
 of every synapse), Poisson background per cell and receptor at the rates and weights of
-:data:`jaxarm.network.noise.NOISE_TABLE` (EM AMPA at its default 200 Hz), and the 192 P generators for the muscle
+the spec (``NetworkSpec.dura_bernal_2015()``, ``Population.noise``; EM AMPA at its default 200 Hz), and the 192 P generators for the muscle
 lengths of the simple arm's start posture: every P cell fires at 1 ms (``p_start_ms``), the cells coding those
 lengths (12 of 192) then fire regular 100 Hz trains from 20 ms on (their lengths are set at 10 ms, the first
 interface update, as in jaxarm's closed loop). The time step is ``NetworkConfig().dt_ms`` (or ``--dt``).
@@ -257,9 +257,10 @@ def run_brian2(dt_ms: float | None = None, seconds: float = 10.0, seed: int = 0,
     from jaxarm.network import cell as cell_mod
     from jaxarm.network import noise as noise_mod
     from jaxarm.network.populations import Populations
-    from jaxarm.network.wiring import AMPA, GABA_DIST, GABA_PROX, PATHWAYS, WiringLayout
+    from jaxarm.network.wiring import AMPA, GABA_DIST, GABA_PROX, WiringLayout
 
     config = NetworkConfig() if dt_ms is None else NetworkConfig(dt_ms=dt_ms)
+    ph = config.spec.physics
     dt = config.dt_ms
     n_steps = int(round(seconds * 1000.0 / dt))
     lengths = start_lengths_m() if lengths_m is None else np.asarray(lengths_m, np.float64)
@@ -267,11 +268,11 @@ def run_brian2(dt_ms: float | None = None, seconds: float = 10.0, seed: int = 0,
     t_build0 = time.perf_counter()   # build = Brian2 objects + code generation + C++ compilation
     c = cell_mod.cell_constants(config)
     sequential = config.event_summation == "sequential"
-    raw_noise_w = np.concatenate([np.repeat(np.array([[w for w, _ in noise_mod.NOISE_TABLE[p]]]).T, config.size(p), 1)
-                                  for p in NETWORK_POPULATIONS], axis=1)
-    noise_w = np.stack([accumulated(raw_noise_w[0], cell_mod.E_AMPA, sequential),
-                        accumulated(raw_noise_w[1], -cell_mod.E_GABA, sequential),
-                        accumulated(raw_noise_w[2], -cell_mod.E_GABA, sequential)])
+    raw_noise_w = np.concatenate([np.repeat(np.array([[w for w, _ in config.spec.population(p).noise]]).T,
+                                            config.size(p), 1) for p in NETWORK_POPULATIONS], axis=1)
+    noise_w = np.stack([accumulated(raw_noise_w[0], ph.e_ampa_mv, sequential),
+                        accumulated(raw_noise_w[1], -ph.e_gaba_mv, sequential),
+                        accumulated(raw_noise_w[2], -ph.e_gaba_mv, sequential)])
     noise_lam = noise_mod.base_rates_hz(config).astype(np.float64) * dt / 1000.0
 
     own_dir = directory is None
@@ -316,8 +317,8 @@ def run_brian2(dt_ms: float | None = None, seconds: float = 10.0, seed: int = 0,
         vm = clip(rmp + ampa + nmda + gaba_prox + gaba_dist + ahp, VM_MIN, VM_MAX) : 1
         """
         namespace = dict(
-            VM_MIN=cell_mod.VM_MIN, VM_MAX=cell_mod.VM_MAX, E_AMPA=cell_mod.E_AMPA, E_NMDA=cell_mod.E_NMDA,
-            E_GABA=cell_mod.E_GABA, MG_RATIO=cell_mod.MG / cell_mod.MG0, MG_SLOPE=cell_mod.MG_SLOPE,
+            VM_MIN=ph.vm_min_mv, VM_MAX=ph.vm_max_mv, E_AMPA=ph.e_ampa_mv, E_NMDA=ph.e_nmda_mv,
+            E_GABA=ph.e_gaba_mv, MG_RATIO=ph.mg_mm / ph.mg0_mm, MG_SLOPE=ph.mg_slope_per_mv,
             D_AMPA=float(c.decay_ampa[0]), D_NMDA=float(c.decay_nmda[0]), D_GP=float(c.decay_gaba_prox[0]),
             D_GD=float(c.decay_gaba_dist[0]), SINCE_MAX=cell_mod._SINCE_MAX - 1, saturation=_saturation_function(b2))
         # jaxarm.network.cell.cell_step, in its order: noise counts of this step, decays, V, jumps, clear inputs
@@ -366,7 +367,8 @@ def run_brian2(dt_ms: float | None = None, seconds: float = 10.0, seed: int = 0,
         # synapses by receptor; P -> ES separately (its presynaptic group is the spike generator)
         n_cells = config.n_cells
         pre, post, delay = syn["pre"], syn["post"], syn["delay_steps"]
-        channel = np.array([pw.channel for pw in PATHWAYS])[WiringLayout(config).pathway_of_synapse()]
+        layout = WiringLayout(config)
+        channel = np.array([layout.channel(pw) for pw in layout.pathways])[layout.pathway_of_synapse()]
         objects = []
         from_p = pre >= n_cells
         for chan, on_pre, name in ((AMPA, "ampa_in_post += w\nnmda_in_post += wn", "exc"),
@@ -376,7 +378,7 @@ def run_brian2(dt_ms: float | None = None, seconds: float = 10.0, seed: int = 0,
             model = "w : 1 (constant)\nwn : 1 (constant)" if chan == AMPA else "w : 1 (constant)"
             s = b2.Synapses(g, g, model=model, on_pre=on_pre, name=f"syn_{name}")
             s.connect(i=pre[sel].astype(np.int32), j=post[sel].astype(np.int32))
-            s.w = accumulated(syn["weight"][sel], cell_mod.E_AMPA if chan == AMPA else -cell_mod.E_GABA, sequential)
+            s.w = accumulated(syn["weight"][sel], ph.e_ampa_mv if chan == AMPA else -ph.e_gaba_mv, sequential)
             if chan == AMPA:
                 s.wn = syn["nmda"][sel].astype(np.float64)
             s.delay = (delay[sel] - 1) * dt * b2.ms   # applied by the next step's cell update: d steps in all
@@ -387,7 +389,7 @@ def run_brian2(dt_ms: float | None = None, seconds: float = 10.0, seed: int = 0,
         sp = b2.Synapses(gen, g, model="w : 1 (constant)\nwn : 1 (constant)",
                          on_pre="ampa_in_post += w\nnmda_in_post += wn", name="syn_p")
         sp.connect(i=(pre[from_p] - pops.start["P"]).astype(np.int32), j=post[from_p].astype(np.int32))
-        sp.w = accumulated(syn["weight"][from_p], cell_mod.E_AMPA, sequential)
+        sp.w = accumulated(syn["weight"][from_p], ph.e_ampa_mv, sequential)
         sp.wn = syn["nmda"][from_p].astype(np.float64)
         sp.delay = (delay[from_p] - 1) * dt * b2.ms
         if noise == "poisson_input":

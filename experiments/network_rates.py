@@ -34,7 +34,9 @@ from jaxarm.learning.babbling import BabblingState, babble, init_babbling
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.network import Network, NetworkConfig, NetworkParams
 from jaxarm.network import readout as readout_mod
-from jaxarm.network.populations import POPULATIONS
+from jaxarm.config.spec import NetworkSpec
+
+POPULATIONS = NetworkSpec.dura_bernal_2015().names
 
 #: Rates of the original over the first 10 s of training, Hz (spec §10, spkstats2).
 ORIGINAL_RATES_HZ = {"ES": 3.9, "IS": 2.4, "ISL": 1.7, "EM": 1.0, "IM": 1.3, "IML": 0.8}

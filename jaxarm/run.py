@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 from jaxarm import parallel
-from jaxarm.config.network import RUNTIME_FIELDS
+from jaxarm.config.network import RUNTIME_FIELDS, SPEC_KEYS
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import NAMES, MetaParams
 from jaxarm.loop import LoopConfig
@@ -73,7 +73,7 @@ def network_config(source) -> NetworkConfig:
     command's parsed options (``--network FILE``, then ``--network-scale F``, then the :data:`NETWORK_OPTIONS`); an
     option that is absent or None keeps NetworkConfig's default."""
     if isinstance(source, dict):
-        fields = {f.name for f in dataclasses.fields(NetworkConfig)} - set(RUNTIME_FIELDS)
+        fields = ({f.name for f in dataclasses.fields(NetworkConfig)} | {"sizes", *SPEC_KEYS}) - set(RUNTIME_FIELDS)
         return NetworkConfig.from_dict({k: v for k, v in source.items() if k in fields and v is not None})
     base = NetworkConfig.load(source.network) if getattr(source, "network", None) else NetworkConfig()
     scale = getattr(source, "network_scale", None)
@@ -91,7 +91,9 @@ def add_network_arguments(ap, note: str = "") -> None:
     help."""
     ap.add_argument("--network", type=Path, default=None, metavar="FILE",
                     help="the network as data: a TOML or JSON file of NetworkConfig fields (sizes, pmat_scale, "
-                         "p_positions, ...; the others keep their defaults; NetworkConfig.save writes one)" + note)
+                         "p_positions, ...) and of a NetworkSpec (populations, pathways, cell_types, physics: a "
+                         "whole network; NetworkSpec.save writes the paper's); what it does not give keeps its "
+                         "default" + note)
     ap.add_argument("--network-scale", type=int, default=None, metavar="F",
                     help="every population F times larger by the original's scaling rules (NetworkConfig.scaled: "
                          "in-degrees, P code and readout drive kept; docs/model.md)")

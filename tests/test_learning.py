@@ -125,8 +125,9 @@ def test_plastic_pathways_and_their_maxima_are_the_originals():
     """spec §4: the eight E->E and E->I pathways of the sensory and motor layers are plastic; E->E synapses are
     bounded by plast_ee_maxw, E->I by plast_ei_maxw (the loop's per-synapse table)."""
     from jaxarm.loop import ClosedLoop
-    from jaxarm.network.wiring import PATHWAYS
+    from jaxarm.config.spec import NetworkSpec
 
+    PATHWAYS = NetworkSpec.dura_bernal_2015().pathways
     plastic = {(pw.pre, pw.post) for pw in PATHWAYS if pw.plastic}
     assert plastic == {("ES", "ES"), ("ES", "IS"), ("ES", "ISL"), ("ES", "EM"), ("EM", "EM"), ("EM", "IM"),
                        ("EM", "IML"), ("EM", "ES")}

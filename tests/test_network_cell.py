@@ -15,6 +15,13 @@ from jaxarm.network import NetworkConfig, Populations
 from jaxarm.network import cell as C
 
 TAUS = {"ampa": 20.0, "nmda": 300.0, "gaba_prox": 10.0, "gaba_dist": 20.0}
+#: INTF6 parameters per type, as params.hoc L71-136 give them (spec §1), written out here independently of the
+#: spec module: RMP, VTH, Vblock (mV), refrac (ms), ahpwt (mV), tauahp, tauRR (ms), RRWght.
+PAPER_CELL_PARAMS = {
+    "E": dict(rmp=-65.0, vth=-40.0, vblock=-25.0, refrac=5.0, ahpwt=1.0, tauahp=400.0, taurr=8.0, rrwght=0.75),
+    "FS": dict(rmp=-63.0, vth=-40.0, vblock=-10.0, refrac=2.5, ahpwt=0.5, tauahp=50.0, taurr=1.5, rrwght=0.25),
+    "LTS": dict(rmp=-65.0, vth=-47.0, vblock=-10.0, refrac=2.5, ahpwt=0.5, tauahp=50.0, taurr=1.5, rrwght=0.25),
+}
 
 
 def reference_intf6(events, p, dt):
@@ -80,7 +87,7 @@ def test_clock_driven_cell_matches_event_driven_intf6(pop, cell_type):
         return jax.lax.scan(body, C.init_cells(1), jnp.asarray(inputs))[1]
 
     spiked, vm, vthc = (np.asarray(a) for a in simulate(inputs))
-    ref_spikes, trace = reference_intf6(events, C.CELL_PARAMS[cell_type], dt)
+    ref_spikes, trace = reference_intf6(events, PAPER_CELL_PARAMS[cell_type], dt)
     ours = [(k + 1) * dt for k in np.flatnonzero(spiked)]
     assert len(ref_spikes) >= 5, "the input train should make the cell fire"
     np.testing.assert_allclose(ours, ref_spikes, atol=1e-6)
@@ -137,7 +144,7 @@ def test_per_event_crossing_fires_a_volley_that_jumps_past_vblock():
     config = NetworkConfig(dt_ms=0.25)
     const = _one_cell_constants(config, 0)   # an E cell: VTH -40, Vblock -25 mV
     zero = jnp.zeros(1)
-    volley = C.event_load(jnp.full((1,), 4.0), C.E_AMPA) * 22     # the summed load of 22 events of 4 mV
+    volley = C.event_load(jnp.full((1,), 4.0), 65.0) * 22     # the summed load of 22 events of 4 mV
     s, after = C.cell_step(C.init_cells(1), volley, zero, zero, zero, const, sequential=True)
     assert float(C.membrane_potential(s, const)[0]) > -25.0 and not bool(after[0])       # into block: no spike
     _, per = C.cell_step(C.init_cells(1), volley, zero, zero, zero, const, sequential=True, per_event_crossing=True)
@@ -185,7 +192,7 @@ def test_sequential_summation_one_event_per_step_equals_intf6(pop, cell_type):
         return jax.lax.scan(body, C.init_cells(1), jnp.asarray(loads))[1]
 
     spiked, vm = (np.asarray(a) for a in simulate(loads))
-    ref_spikes, trace = reference_intf6(events, C.CELL_PARAMS[cell_type], 0.5)
+    ref_spikes, trace = reference_intf6(events, PAPER_CELL_PARAMS[cell_type], 0.5)
     assert len(ref_spikes) >= 3
     np.testing.assert_allclose([(k + 1) * 0.5 for k in np.flatnonzero(spiked)], ref_spikes, atol=1e-6)
     np.testing.assert_allclose(vm, [v for _, v, _ in trace], atol=5e-3)

@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from jaxarm.config.validate import ConfigError
-from jaxarm.network import PATHWAYS, NetworkConfig, Populations, WiringLayout, in_degree_table, make_wiring
-from jaxarm.network.wiring import SPIKE_GROUPS
+from jaxarm.config.spec import NetworkSpec
+from jaxarm.network import NetworkConfig, Populations, WiringLayout, in_degree_table, make_wiring
+
+PATHWAYS = NetworkSpec.dura_bernal_2015().pathways
 
 #: In-degrees of the spec §2 table (verified there by dumping the original's built network).
 SPEC_IN_DEGREE = {
@@ -50,7 +52,7 @@ def test_muscle_groups_are_id_mod_4_and_interleaved():
 
 def test_in_degrees_weights_and_totals_match_spec_table():
     assert in_degree_table() == SPEC_IN_DEGREE
-    assert {pw.name: pw.weight for pw in PATHWAYS} == SPEC_WEIGHT
+    assert {pw.name: pw.weight_mv for pw in PATHWAYS} == SPEC_WEIGHT
     assert {pw.name for pw in PATHWAYS if pw.plastic} == PLASTIC
     layout = WiringLayout(NetworkConfig())
     assert layout.n_network_syn == 46_440       # spec §2: intra-network synapses
@@ -106,7 +108,7 @@ def test_delivery_tables_list_every_network_synapse_once(wiring):
         np.testing.assert_allclose(np.asarray(tables.out_weight), np.asarray(wiring.weight)[out])
     seen = np.sort(np.concatenate(seen))
     np.testing.assert_array_equal(seen, np.arange(layout.n_network_syn))
-    assert [g for g in SPIKE_GROUPS] == [("ES",), ("EM",), ("IS", "ISL", "IM", "IML")]
+    assert layout.spike_groups == (("ES",), ("EM",), ("IS", "ISL", "IM", "IML"))
 
 
 def test_plastic_input_tables_list_each_cells_plastic_synapses(wiring):
@@ -132,13 +134,20 @@ def test_wiring_is_deterministic_and_key_dependent():
 
 
 @pytest.mark.parametrize("field, value", [
-    ("dt_ms", 0.3), ("dt_ms", 0.0), ("dt_ms", 2.0), ("sizes", (192, 44, 20, 190, 44, 20, 192)),
+    ("dt_ms", 0.3), ("dt_ms", 0.0), ("dt_ms", 2.0),
     ("self_connections", "none"), ("p_tuning", "wide"), ("spike_capacity", (4, 2)), ("spike_capacity", 8),
     ("readout_bins", 1), ("interface_ms", 10.5), ("noise_max_rate_hz", -1.0), ("readout_clip", 1),
 ])
 def test_config_rejects_bad_values_naming_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         NetworkConfig(**{field: value})
+
+
+def test_sizes_are_checked_against_the_spec():
+    with pytest.raises(ConfigError, match=r"Population 'EM'.size = 190: must be a multiple of 4"):
+        NetworkConfig().with_sizes((192, 44, 20, 190, 44, 20, 192))
+    with pytest.raises(ConfigError, match=r"7 integers, one per population ES, IS, ISL, EM, IM, IML, P"):
+        NetworkConfig.from_dict({"sizes": [1, 2]})
 
 
 def test_wiring_from_edges_rebuilds_a_drawn_wiring_and_maps_per_edge_arrays(wiring):
@@ -191,19 +200,17 @@ def test_wiring_from_edges_names_what_does_not_fit(wiring):
 
 
 def test_pathway_order_and_int32_limits_are_checked():
-    from jaxarm.network.wiring import PATHWAYS, check_pathway_order
-
-    check_pathway_order(PATHWAYS)
+    spec = NetworkSpec.dura_bernal_2015()
     with pytest.raises(ConfigError, match="plastic pathways must come first"):
-        check_pathway_order(PATHWAYS[1:] + PATHWAYS[:1])
-    with pytest.raises(ConfigError, match="P -> ES must be the last pathway"):
-        check_pathway_order(PATHWAYS[:-2] + PATHWAYS[-1:] + PATHWAYS[-2:-1])
+        dataclasses.replace(spec, pathways=PATHWAYS[1:] + PATHWAYS[:1])
+    with pytest.raises(ConfigError, match="pathways from 'P' come last"):
+        dataclasses.replace(spec, pathways=PATHWAYS[:-2] + PATHWAYS[-1:] + PATHWAYS[-2:-1])
     # 4 channels x n_cells << 10 must fit int32: 524,287 network cells at most
     with pytest.raises(ConfigError, match="at most 524287"):
-        WiringLayout(NetworkConfig(sizes=(100_000,) * 6 + (192,)))
-    WiringLayout(NetworkConfig(sizes=(87_000,) * 6 + (192,), pmat_scale=0.001))   # 522,000 cells: fits
+        WiringLayout(NetworkConfig().with_sizes((100_000,) * 6 + (192,)))
+    WiringLayout(NetworkConfig(pmat_scale=0.001).with_sizes((87_000,) * 6 + (192,)))   # 522,000 cells: fits
     with pytest.raises(ConfigError, match="synapses do not fit int32"):
-        WiringLayout(NetworkConfig(sizes=(87_000,) * 6 + (192,)))
+        WiringLayout(NetworkConfig().with_sizes((87_000,) * 6 + (192,)))
 
 
 def test_loop_checks_run_length_and_readout_history():
@@ -316,7 +323,7 @@ def test_network_config_round_trips_through_toml_and_json_and_names_bad_fields(t
     with pytest.raises(ConfigError, match="unknown NetworkConfig field.*foo"):
         NetworkConfig.load(tmp_path / "bad.toml")
     (tmp_path / "bad.toml").write_text("sizes = [1, 2]\n")
-    with pytest.raises(ConfigError, match="NetworkConfig.sizes"):
+    with pytest.raises(ConfigError, match="NetworkConfig.sizes = \\[1, 2\\]: 7 integers"):
         NetworkConfig.load(tmp_path / "bad.toml")
     (tmp_path / "bad.toml").write_text("sizes = [1, 2\n")
     with pytest.raises(ConfigError, match="not valid TOML"):

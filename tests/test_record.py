@@ -9,7 +9,7 @@ import pytest
 from jaxarm import record as rec_mod
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
-from jaxarm.loop import POP_NAMES, LoopConfig
+from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig, native
 from jaxarm.network.populations import Populations
 from jaxarm.task.config import TaskConfig
@@ -94,7 +94,7 @@ def test_record_equals_the_networks_own_counts_and_changes_nothing(kernel):
         np.testing.assert_array_equal(hist, np.asarray(win.counts[r]))
         hist = _histogram(t1.record.spikes, r, n_all, 0, test_steps, spi)
         np.testing.assert_array_equal(hist, np.asarray(t1.record.counts[r]))
-        for j, p in enumerate(POP_NAMES):
+        for j, p in enumerate(cfg.network.spec.network_populations):
             n_spikes = hist[pops.slice(p)].sum()
             assert n_spikes == pytest.approx(float(t0.rates_hz[r, j]) * TASK.test_duration_s * cfg.network.size(p),
                                              rel=1e-5)

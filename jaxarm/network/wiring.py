@@ -43,6 +43,7 @@ import numpy as np
 
 from jaxarm.config.network import NetworkConfig
 from jaxarm.config.spec import Pathway
+from jaxarm.config.validate import ConfigError
 from jaxarm.network.populations import Populations
 
 #: Receptor channels of the per-cell synaptic input rows.
