@@ -32,13 +32,29 @@ import numpy as np
 from jaxarm.arm.base import GROUPS
 from jaxarm.record import MUSCLES_FILE, SPIKES_FILE, SpikeFile
 
-#: Raster bands, top to bottom, as the paper's Fig. 5.
-BAND_ORDER = ("P", "ES", "IS", "ISL", "EM", "IM", "IML")
 #: Muscle groups (jaxarm.arm.GROUPS order: shoulder extensors, shoulder flexors, elbow extensors, elbow flexors).
 GROUP_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
-#: Cells without a muscle group: excitatory dark, inhibitory purple.
+#: The paper's populations without a muscle group: excitatory dark, inhibitory purple; others of a changed network
+#: take OTHER_COLORS in order.
 POP_COLORS = {"ES": "0.2", "IS": "tab:purple", "ISL": "tab:pink", "IM": "tab:purple", "IML": "tab:pink"}
+OTHER_COLORS = ("tab:brown", "tab:olive", "tab:cyan", "tab:gray", "darkgoldenrod", "teal")
 PASSIVE_COLOR = "0.6"
+
+
+def band_order(f: SpikeFile) -> tuple[str, ...]:
+    """Raster bands, top to bottom, as the paper's Fig. 5: the generator population (P, last in id order) on top,
+    then the network populations in id order (the paper's ES, IS, ISL, EM, IM, IML)."""
+    return (f.populations[-1],) + tuple(f.populations[:-1])
+
+
+def pop_color(f: SpikeFile, pop: str) -> str:
+    """One colour per population: the muscle-group populations (P, EM) by their first group's, the paper's others
+    as POP_COLORS, any other in OTHER_COLORS order."""
+    ids = np.arange(f.pop_start[pop], f.pop_stop[pop])
+    if len(ids) and f.group[ids[0]] >= 0:
+        return GROUP_COLORS[0] if pop == f.populations[-1] else GROUP_COLORS[3]
+    others = [p for p in f.populations if p not in POP_COLORS]
+    return POP_COLORS.get(pop) or OTHER_COLORS[others.index(pop) % len(OTHER_COLORS)]
 
 
 def plt():
@@ -122,13 +138,13 @@ def cell_layout(f: SpikeFile):
     row = np.empty(f.n_all, np.int64)
     color = np.empty((f.n_all, 4))
     bands, y = {}, 0
-    for pop in BAND_ORDER:
+    for pop in band_order(f):
         ids = np.arange(f.pop_start[pop], f.pop_stop[pop])
-        if pop in ("P", "EM"):
+        if len(ids) and f.group[ids[0]] >= 0:          # a muscle-group population (P, EM)
             ids = ids[np.lexsort((ids, f.group[ids]))]
             color[ids] = np.array([to_rgba(GROUP_COLORS[g]) for g in f.group[ids]])
         else:
-            color[ids] = to_rgba(POP_COLORS[pop])
+            color[ids] = to_rgba(pop_color(f, pop))
         row[ids] = y + np.arange(len(ids))
         bands[pop] = (y, y + len(ids))
         y += len(ids)
@@ -224,7 +240,7 @@ def population_rates(f: SpikeFile, window: str, r: int, bin_ms: float):
     t_ms, cell = f.spikes(window, r)
     b = np.clip(np.ceil((t_ms - lo) / bin_ms - 1e-9).astype(np.int64) - 1, 0, n_bins - 1)
     rates = {}
-    for pop in BAND_ORDER:
+    for pop in band_order(f):
         a, z = f.pop_start[pop], f.pop_stop[pop]
         sel = (cell >= a) & (cell < z)
         rates[pop] = np.bincount(b[sel], minlength=n_bins) / ((z - a) * np.diff(edges) / 1000.0)
@@ -236,24 +252,24 @@ def rates_figure(run: RunFolder, out: Path, network: int, window: str, bin_ms: f
     r = f.row_of(network)
     edges, rates = population_rates(f, window, r, bin_ms)
     mean = {pop: np.mean([population_rates(f, window, k, bin_ms)[1][pop] for k in range(len(f))], axis=0)
-            for pop in BAND_ORDER}
-    colors = {pop: (GROUP_COLORS[0] if pop == "P" else GROUP_COLORS[3] if pop == "EM" else POP_COLORS[pop])
-              for pop in BAND_ORDER}
+            for pop in band_order(f)}
+    colors = {pop: pop_color(f, pop) for pop in band_order(f)}
     has_history = run.history is not None and run.history["rates_last10s_hz"].shape[0] > 0
     p = plt()
     fig, axes = p.subplots(2 if has_history else 1, 1, figsize=(9, 6.5 if has_history else 3.5), squeeze=False)
     ax = axes[0, 0]
     centre_s = (edges[:-1] + edges[1:]) / 2000.0
-    for pop in BAND_ORDER:
+    for pop in band_order(f):
         ax.plot(centre_s, rates[pop], color=colors[pop], lw=1.0, label=pop,
                 ls="--" if pop in ("ISL", "IML") else "-")
     ax.set(xlabel="time (s)", ylabel="rate (Hz)",
            title=f"{run.label}: population rates of network {network}, {window.replace('_', ' ')}, {bin_ms:g} ms bins")
     ax.legend(fontsize=7, ncol=7, loc="upper right")
     paths = []
-    header = ["t_start_ms", "t_stop_ms"] + [f"{p_}_hz" for p_ in BAND_ORDER] + [f"mean_{p_}_hz" for p_ in BAND_ORDER]
-    rows = [[round(edges[i], 6), round(edges[i + 1], 6)] + [round(float(rates[p_][i]), 6) for p_ in BAND_ORDER]
-            + [round(float(mean[p_][i]), 6) for p_ in BAND_ORDER] for i in range(len(edges) - 1)]
+    bands = band_order(f)
+    header = ["t_start_ms", "t_stop_ms"] + [f"{p_}_hz" for p_ in bands] + [f"mean_{p_}_hz" for p_ in bands]
+    rows = [[round(edges[i], 6), round(edges[i + 1], 6)] + [round(float(rates[p_][i]), 6) for p_ in bands]
+            + [round(float(mean[p_][i]), 6) for p_ in bands] for i in range(len(edges) - 1)]
     paths.append(_write_csv(out / "rates.csv", header, rows))
     if has_history:
         h = run.history["rates_last10s_hz"]         # (epochs, networks, 6)
