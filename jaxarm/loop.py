@@ -165,8 +165,8 @@ class ClosedLoop:
         """Per synapse: |AMPA| + |NMDA| or |GABA| base weight (mV), zero for the generator's (P->ES: scaling counts
         the 512 network cells only, as in the original), and the total S0 of those base weights."""
         layout = self.net.layout
-        proprio = self.net.config.spec.proprio
-        per_pathway = [0.0 if pw.pre == proprio else abs(pw.weight_mv) + abs(layout.nmda_weight_mv(pw))
+        generators = self.net.config.spec.generators
+        per_pathway = [0.0 if pw.pre in generators else abs(pw.weight_mv) + abs(layout.nmda_weight_mv(pw))
                        for pw in layout.pathways]
         base = np.array([per_pathway[i] for i in layout.pathway_of_synapse()], np.float32)
         return base, float(base.sum())  # numpy, see plastic_tables
@@ -185,6 +185,9 @@ class ClosedLoop:
         # the first interval (10 ms), as in the original (msarm.hoc); an update here moved the start spike of the
         # ~12 cells in range at the start posture to 10 ms.
         net = self.net.init(noise_key, wgain=wgain, em_rates_hz=em_rates_hz)
+        if self.config.network.spec.target_codes:   # target-coding generators: the target's direction
+            start_xy = jnp.asarray(self.config.task.start_xy_m, jnp.float32)
+            net = self.net.set_target(net, jnp.arctan2(target.xy_m[1] - start_xy[1], target.xy_m[0] - start_xy[0]))
         err0 = self._critic_error(self.arm.observe(arm_state), target)
         return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), babble=babble,
                          err_hist_m=jnp.stack([err0, err0]), last_rl_ms=jnp.zeros((), jnp.float32),

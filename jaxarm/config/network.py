@@ -318,13 +318,18 @@ class NetworkConfig:
 
     @property
     def n_cells(self) -> int:
-        """Network (INTF6) cells: every population but the generator."""
-        return sum(self.sizes[:-1])
+        """Network (INTF6) cells: every population but the generators (ids 0 .. n_cells - 1)."""
+        return sum(self.size(p) for p in self.spec.network_populations)
 
     @property
     def n_p(self) -> int:
-        """Cells of the generator (proprioceptive) population."""
-        return self.sizes[-1]
+        """Cells of the proprioceptive (P) code."""
+        return self.size(self.spec.proprio)
+
+    @property
+    def n_generators(self) -> int:
+        """Generator cells, every generator population (ids n_cells .. n_all - 1; the paper's: the 192 P cells)."""
+        return self.n_all - self.n_cells
 
     @property
     def n_all(self) -> int:

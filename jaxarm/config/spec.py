@@ -13,10 +13,12 @@ parameters: everything the kernels need to know about *what* the network is (how
 
 Conventions the kernels rely on, checked here (a violation is a ConfigError naming the population or pathway):
 
-* Network (INTF6) populations first, in global-id order; the one generator population, the proprioceptive code
-  (``proprio``, regular trains set by muscle lengths), last.
-* Pathways: the plastic ones first (plastic synapse k is synapse k), then the fixed ones between network cells,
-  then those from the generator population (its trains are known a chunk ahead and delivered once per chunk).
+* Network (INTF6) populations first, in global-id order; the generator populations (regular spike trains, known a
+  chunk ahead) last: the proprioceptive code (``proprio``, trains set by the muscle lengths) and any number of
+  target codes (``code="target"``: cell j belongs to direction group j % ``groups`` and fires at ``rate_hz`` while
+  the current target lies in its direction, seen from the start hand position; silent otherwise).
+* Pathways: the plastic ones first (plastic synapse k is synapse k; a target code's pathways may be plastic), then
+  the fixed ones between network cells, then the fixed ones from generators (delivered once per chunk).
 * Spike groups (which cells share one spike list and delivery table): each excitatory population alone, in order,
   then every inhibitory population together (the paper's: ES; EM; IS, ISL, IM, IML); at most 8 groups.
 * The motor readout population (``readout``) and the generator population have multiples of 4 cells (four muscle
@@ -41,6 +43,8 @@ OUTPUTS = ("excitatory", "inhibitory_proximal", "inhibitory_distal")
 NOISE_RECEPTORS = ("ampa", "gaba_prox", "gaba_dist")
 #: The cell type name of a generator population (a train of spikes, no membrane).
 GENERATOR = "generator"
+#: What sets a generator population's trains: the muscle lengths, or the direction of the current target.
+GENERATOR_CODES = ("proprioceptive", "target")
 #: Most spike groups the native kernel takes.
 MAX_SPIKE_GROUPS = 8
 MAX_POPULATION = 100_000
@@ -99,12 +103,17 @@ class CellType:
 class Population:
     """``size`` cells of one type (a :class:`CellType` name, or ``"generator"``). ``noise``: the background
     Poisson input of each cell, one (weight mV, rate Hz) per receptor of :data:`NOISE_RECEPTORS`; () for a
-    generator population (it has no membrane)."""
+    generator population (it has no membrane). A generator population has a ``code`` (:data:`GENERATOR_CODES`);
+    a target code also ``groups`` (directions, cell j codes direction j % groups, direction k at k x 360/groups
+    degrees counterclockwise from +x) and ``rate_hz`` (its cells' rate while their direction is the target's)."""
 
     name: str
     size: int
     cell_type: str
     noise: tuple[tuple[float, float], ...] = ()
+    code: str = ""
+    groups: int = 0
+    rate_hz: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -116,6 +125,20 @@ class Population:
         if self.cell_type == GENERATOR:
             if noise:
                 raise ConfigError(f"{owner}.noise: a generator population takes no background noise")
+            if self.code not in GENERATOR_CODES:
+                raise ConfigError(f"{owner}.code = {self.code!r}: a generator population's code is one of "
+                                  f"{', '.join(GENERATOR_CODES)}")
+            if self.code == "target":
+                if isinstance(self.groups, bool) or not isinstance(self.groups, int) or not 1 <= self.groups <= 64 \
+                        or self.size % self.groups:
+                    raise ConfigError(f"{owner}.groups = {self.groups!r}: an integer in [1, 64] that divides its "
+                                      f"size {self.size}")
+                object.__setattr__(self, "rate_hz", _number(owner, "rate_hz", self.rate_hz, 0.0, 1000.0, True))
+            elif self.groups or self.rate_hz:
+                raise ConfigError(f"{owner}: groups and rate_hz belong to a target code (the proprioceptive code's "
+                                  "rate is NetworkConfig.p_rate_hz)")
+        elif self.code or self.groups or self.rate_hz:
+            raise ConfigError(f"{owner}: code, groups and rate_hz belong to generator populations")
         elif len(noise) != len(NOISE_RECEPTORS) or not all(isinstance(x, tuple) and len(x) == 2 for x in noise):
             raise ConfigError(f"{owner}.noise = {self.noise!r}: one (weight mV, rate Hz) pair per receptor "
                               f"{', '.join(NOISE_RECEPTORS)}")
@@ -232,15 +255,19 @@ class NetworkSpec:
             if p.cell_type != GENERATOR and p.cell_type not in types:
                 raise ConfigError(f"Population {p.name!r}.cell_type = {p.cell_type!r}: one of "
                                   f"{', '.join(list(types) + [GENERATOR])}")
-        generators = [p.name for p in self.populations if p.cell_type == GENERATOR]
-        if generators != [self.proprio] or names[-1] != self.proprio:
-            raise ConfigError(f"NetworkSpec.populations: exactly one generator population, the proprioceptive "
-                              f"one ({self.proprio!r}), and it must come last; got generators {generators}")
-        if len(names) < 2:
-            raise ConfigError("NetworkSpec.populations: at least one network population and the generator")
-        if self.readout not in names or self.readout == self.proprio:
+        is_gen = [p.cell_type == GENERATOR for p in self.populations]
+        if is_gen != sorted(is_gen) or not is_gen[-1]:
+            raise ConfigError(f"NetworkSpec.populations: the generator populations come last; got "
+                              f"{', '.join(f'{p.name} ({p.cell_type})' for p in self.populations)}")
+        proprio = [p.name for p in self.populations if p.code == "proprioceptive"]
+        if proprio != [self.proprio]:
+            raise ConfigError(f"NetworkSpec.proprio = {self.proprio!r}: exactly one generator population with code "
+                              f"'proprioceptive', named so; got {proprio}")
+        if not any(not g for g in is_gen):
+            raise ConfigError("NetworkSpec.populations: at least one network population")
+        if self.readout not in self.network_populations:
             raise ConfigError(f"NetworkSpec.readout = {self.readout!r}: one of the network populations "
-                              f"{', '.join(names[:-1])}")
+                              f"{', '.join(self.network_populations)}")
         for name in (self.readout, self.proprio):
             if self.population(name).size % 4:
                 raise ConfigError(f"Population {name!r}.size = {self.population(name).size}: must be a multiple of "
@@ -251,8 +278,8 @@ class NetworkSpec:
             for end in (pw.pre, pw.post):
                 if end not in names:
                     raise ConfigError(f"Pathway {pw.name}: no population {end!r}; known: {', '.join(names)}")
-            if pw.post == self.proprio:
-                raise ConfigError(f"Pathway {pw.name}: the generator population {self.proprio!r} takes no input")
+            if pw.post in self.generators:
+                raise ConfigError(f"Pathway {pw.name}: the generator population {pw.post!r} takes no input")
             if pw.name in seen:
                 raise ConfigError(f"Pathway {pw.name}: given twice")
             seen.add(pw.name)
@@ -260,11 +287,13 @@ class NetworkSpec:
                 raise ConfigError(f"Pathway {pw.name} (position {i}): the {n_plastic} plastic pathways must come "
                                   "first")
             if pw.plastic and pw.pre == self.proprio:
-                raise ConfigError(f"Pathway {pw.name}: pathways from the generator population cannot be plastic")
-        from_gen = [pw.pre == self.proprio for pw in self.pathways]
-        if not any(from_gen) or from_gen != sorted(from_gen):
-            raise ConfigError(f"NetworkSpec.pathways: the pathways from {self.proprio!r} come last (at least one), "
-                              f"got {', '.join(pw.name for pw in self.pathways)}")
+                raise ConfigError(f"Pathway {pw.name}: pathways from the proprioceptive code cannot be plastic "
+                                  "(its trains are the arm's state)")
+        fixed_from_gen = [pw.pre in self.generators for pw in self.pathways if not pw.plastic]
+        if not any(pw.pre == self.proprio for pw in self.pathways) or fixed_from_gen != sorted(fixed_from_gen):
+            raise ConfigError(f"NetworkSpec.pathways: the fixed pathways from generators ({', '.join(self.generators)})"
+                              f" come last, with at least one from {self.proprio!r}; got "
+                              f"{', '.join(pw.name for pw in self.pathways)}")
         if len(self.spike_groups) > MAX_SPIKE_GROUPS:
             raise ConfigError(f"NetworkSpec: {len(self.spike_groups)} spike groups (one per excitatory population "
                               f"plus one for the inhibitory ones); at most {MAX_SPIKE_GROUPS}")
@@ -283,7 +312,7 @@ class NetworkSpec:
             Population("EM", 192, "E", ((3.9375, 200.0),) + inh),
             Population("IM", 44, "FS", ((4.125, 200.0),) + inh),
             Population("IML", 20, "LTS", ((3.0, 200.0),) + inh),
-            Population("P", 192, GENERATOR),
+            Population("P", 192, GENERATOR, code="proprioceptive"),
         )
         pathways = (
             Pathway("ES", "ES", 0.05, 1.98, _DISTAL, True),
@@ -325,8 +354,17 @@ class NetworkSpec:
 
     @property
     def network_populations(self) -> tuple[str, ...]:
-        """The INTF6 populations (all but the generator), in order."""
-        return self.names[:-1]
+        """The INTF6 populations (all but the generators), in order."""
+        return tuple(p.name for p in self.populations if p.cell_type != GENERATOR)
+
+    @property
+    def generators(self) -> tuple[str, ...]:
+        """The generator populations (last in id order): the proprioceptive code and any target codes."""
+        return tuple(p.name for p in self.populations if p.cell_type == GENERATOR)
+
+    @property
+    def target_codes(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.populations if p.code == "target")
 
     @property
     def sizes(self) -> tuple[int, ...]:
@@ -348,7 +386,7 @@ class NetworkSpec:
 
     def output(self, population: str) -> str:
         """The receptor a population's spikes drive (a generator population's are excitatory)."""
-        return "excitatory" if population == self.proprio else self.cell_type(population).output
+        return "excitatory" if population in self.generators else self.cell_type(population).output
 
     def pathway(self, name: str) -> Pathway:
         for pw in self.pathways:
@@ -375,19 +413,22 @@ class NetworkSpec:
             dataclasses.replace(p, size=n) for p, n in zip(self.populations, sizes)))
 
     def with_population(self, population: Population) -> "NetworkSpec":
-        """This spec with a network population added after the others (before the generator)."""
-        return dataclasses.replace(self, populations=self.populations[:-1] + (population, self.populations[-1]))
+        """This spec with a population added after the others of its kind (a network population before the
+        generators, a generator last)."""
+        pops = list(self.populations)
+        i = len(pops) if population.cell_type == GENERATOR else len(self.network_populations)
+        return dataclasses.replace(self, populations=tuple(pops[:i] + [population] + pops[i:]))
 
     def with_pathway(self, pathway: Pathway) -> "NetworkSpec":
         """This spec with a pathway added where the ordering rules put it: after the plastic ones if plastic, else
-        before the generator's."""
+        last if from a generator, else before the fixed ones from generators."""
         pws = list(self.pathways)
         if pathway.plastic:
             i = sum(p.plastic for p in pws)
-        elif pathway.pre == self.proprio:
+        elif pathway.pre in self.generators:
             i = len(pws)
         else:
-            i = next((k for k, p in enumerate(pws) if p.pre == self.proprio), len(pws))
+            i = next((k for k, p in enumerate(pws) if not p.plastic and p.pre in self.generators), len(pws))
         return dataclasses.replace(self, pathways=tuple(pws[:i] + [pathway] + pws[i:]))
 
     # ----- as data -----
@@ -400,7 +441,7 @@ class NetworkSpec:
 
         return {"readout": self.readout, "proprio": self.proprio,
                 "populations": [{k: plain(v) for k, v in dataclasses.asdict(p).items()
-                                 if not (k == "noise" and not v)} for p in self.populations],
+                                 if v or k in ("name", "size", "cell_type")} for p in self.populations],
                 "pathways": [{k: plain(v) for k, v in dataclasses.asdict(pw).items()} for pw in self.pathways],
                 "cell_types": [dataclasses.asdict(t) for t in self.cell_types],
                 "physics": dataclasses.asdict(self.physics)}

@@ -19,7 +19,7 @@ State layout (every field may carry leading batch axes under ``vmap``):
 
 * ``step``: () int32 clock steps since the start of the run; the time is ``step * dt_ms``.
 * ``cells``: :class:`~jaxarm.network.cell.CellState`, (n_cells,) arrays for the 512 INTF6 cells (ids 0..511).
-* ``p``: :class:`~jaxarm.network.proprio.PState` of the 192 P generators (ids 512..703).
+* ``p``: :class:`~jaxarm.network.proprio.PState` of the generator cells (the paper's: the 192 P cells, ids 512..703).
 * ``noise``: :class:`~jaxarm.network.noise.NoiseState` (seeds, the Poisson tables of the current rates, per-lane event
   budgets).
 * ``ring``: the synaptic input ring buffer (:mod:`jaxarm.network.synapses`).
@@ -143,8 +143,8 @@ class Network:
                                      sequential=c.event_summation == "sequential", physics=c.spec.physics)
 
     @cached_property
-    def p_synapses(self) -> slice:
-        """The synapses from the generator population (P), delivered once per chunk."""
+    def p_synapses(self) -> "slice | np.ndarray":
+        """The synapses from generator populations (the paper's P), delivered once per chunk."""
         return self.layout.generator_synapses
 
     @cached_property
@@ -220,6 +220,11 @@ class Network:
         """New muscle lengths (4,) in m (GROUPS order) for the P code, from now on."""
         return state._replace(p=proprio_mod.set_lengths(self.config, state.p, lengths_m, state.step))
 
+    def set_target(self, state: State, direction_rad) -> State:
+        """Point every target code (generator populations with ``code="target"``) at the direction
+        ``direction_rad`` (rad, counterclockwise from +x), from now on; a no-op in the paper's network."""
+        return state._replace(p=proprio_mod.set_target(self.config, state.p, direction_rad, state.step))
+
     def set_em_rates(self, state: State, em_rates_hz) -> State:
         """EM AMPA background rate per muscle group (4,), Hz, from now on."""
         return state._replace(noise=noise_mod.set_em_rates(self.config, state.noise, em_rates_hz))
@@ -262,8 +267,8 @@ class Network:
         """Steps per delivery block: the largest divisor of :attr:`chunk_steps` that is no longer than the shortest
         network delay (so a block's spikes all arrive after it) nor the shortest refractory period (so a cell fires
         at most once per block)."""
-        proprio = self.config.spec.proprio
-        d_min = min(self.config.steps(pw.delay_ms[0]) for pw in self.layout.pathways if pw.pre != proprio)
+        generators = self.config.spec.generators
+        d_min = min(self.config.steps(pw.delay_ms[0]) for pw in self.layout.pathways if pw.pre not in generators)
         limit = max(1, min(d_min, int(self.cell_constants.n_refractory.min())))
         if self.config.block_steps:
             limit = min(limit, self.config.block_steps)
@@ -310,10 +315,10 @@ class Network:
             from jaxarm.network import native
             state, spikes = native.chunk(self, wiring, state, params, n_steps)
             return state, (spikes if collect else None)
-        min_interval = self.config.steps(1000.0 / self.config.p_rate_hz)
+        min_interval = proprio_mod.min_interval_steps(self.config)
         ring = syn_mod.deliver_p_window(
             state.ring, state.p.next_step, state.p.interval_steps, state.step, n_steps, wiring, state.wgain,
-            self.p_synapses, self.pops.start[self.config.spec.proprio], proprio_mod.NEVER_STEPS,
+            self.p_synapses, self.config.n_cells, proprio_mod.NEVER_STEPS,
             max_spikes=n_steps // min_interval + 1, n_slots=self.n_slots, n_cells=self.config.n_cells,
             sequential=self.config.event_summation == "sequential", physics=self.config.spec.physics)
         state = state._replace(ring=ring)

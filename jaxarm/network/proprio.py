@@ -17,6 +17,12 @@ Generators (NSLOC with noise 0, ``PState``; times in clock steps since the start
   first P update is at t = 10 ms).
 
 Ambiguity resolved here: NSLOC polls interval changes every 1 ms; we apply a change at the step of the call.
+
+Target codes (generator populations with ``code="target"``, none in the paper's network; ``PState`` holds every
+generator cell, ids n_cells .. n_all - 1): cell j of such a population belongs to direction group j % groups and
+fires a regular train at its ``rate_hz`` while the current target lies in that direction (:func:`set_target`, at
+the start of every run: the direction of the target from the start hand position, rounded to the nearest group);
+its other cells are silent. No start spike.
 """
 from __future__ import annotations
 
@@ -33,8 +39,8 @@ NEVER_STEPS = 2 ** 30
 
 
 class PState(NamedTuple):
-    next_step: jnp.ndarray      # (n_P,) int32 step of each cell's next spike
-    interval_steps: jnp.ndarray  # (n_P,) int32 current interval, steps (NEVER_STEPS when silent)
+    next_step: jnp.ndarray      # (n_generators,) int32 step of each generator cell's next spike (the paper's: P)
+    interval_steps: jnp.ndarray  # (n_generators,) int32 current interval, steps (NEVER_STEPS when silent)
 
 
 def tuning_windows(config: NetworkConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -58,19 +64,70 @@ def active_cells(config: NetworkConfig, lengths_m):
     return (length >= lo) & (length <= hi)
 
 
+def _p_cells(config: NetworkConfig) -> slice:
+    """The P cells' slice of the generator cells."""
+    start = Populations(config).start[config.spec.proprio] - config.n_cells
+    return slice(start, start + config.n_p)
+
+
 def init_p(config: NetworkConfig) -> PState:
-    n = config.n_p
-    return PState(next_step=jnp.full((n,), config.steps(config.p_start_ms), jnp.int32),
-                  interval_steps=jnp.full((n,), NEVER_STEPS, jnp.int32))
+    """Every generator silent; the P cells' start spike at ``p_start_ms``."""
+    n = config.n_generators
+    if n == config.n_p:
+        next_step = jnp.full((n,), config.steps(config.p_start_ms), jnp.int32)
+    else:
+        first = np.full((n,), NEVER_STEPS, np.int32)
+        first[_p_cells(config)] = config.steps(config.p_start_ms)
+        next_step = jnp.asarray(first)
+    return PState(next_step=next_step, interval_steps=jnp.full((n,), NEVER_STEPS, jnp.int32))
+
+
+def _retime(p: PState, interval, step, cells: slice | None = None) -> PState:
+    """New intervals for ``cells`` (None: every generator cell) with NSLOC semantics: a shorter interval restarts
+    the train one interval after ``step``; a longer one takes effect after the spike already scheduled."""
+    old_next, old_interval = (p.next_step, p.interval_steps) if cells is None else (p.next_step[cells],
+                                                                                      p.interval_steps[cells])
+    shorter = interval < old_interval
+    next_step = jnp.where(shorter, jnp.asarray(step, jnp.int32) + interval, old_next).astype(jnp.int32)
+    if cells is None:
+        return PState(next_step=next_step, interval_steps=interval)
+    return PState(next_step=p.next_step.at[cells].set(next_step),
+                  interval_steps=p.interval_steps.at[cells].set(interval))
 
 
 def set_lengths(config: NetworkConfig, p: PState, lengths_m, step) -> PState:
     """Update the P trains for new muscle lengths (m) at clock step ``step`` (NSLOC interval-change semantics)."""
     on = active_cells(config, lengths_m)
     interval = jnp.where(on, config.steps(1000.0 / config.p_rate_hz), NEVER_STEPS).astype(jnp.int32)
-    shorter = interval < p.interval_steps
-    next_step = jnp.where(shorter, jnp.asarray(step, jnp.int32) + interval, p.next_step)
-    return PState(next_step=next_step.astype(jnp.int32), interval_steps=interval)
+    return _retime(p, interval, step, None if config.n_generators == config.n_p else _p_cells(config))
+
+
+def target_group(config: NetworkConfig, population: str, direction_rad):
+    """The direction group of a target code nearest ``direction_rad`` (the target's direction from the start hand
+    position, counterclockwise from +x)."""
+    groups = config.spec.population(population).groups
+    return jnp.round(jnp.asarray(direction_rad, jnp.float32) * (groups / (2.0 * np.pi))).astype(jnp.int32) % groups
+
+
+def set_target(config: NetworkConfig, p: PState, direction_rad, step) -> PState:
+    """Switch every target code to the direction ``direction_rad`` (rad) at clock step ``step``: the cells of the
+    nearest direction group fire at the population's ``rate_hz``, the others fall silent. A no-op without target
+    codes (the paper's network)."""
+    pops = Populations(config)
+    for name in config.spec.target_codes:
+        pop = config.spec.population(name)
+        cells = slice(pops.start[name] - config.n_cells, pops.stop[name] - config.n_cells)
+        group = jnp.asarray(np.arange(pop.size) % pop.groups)
+        on = group == target_group(config, name, direction_rad)
+        interval = jnp.where(on, max(1, config.steps(1000.0 / pop.rate_hz)), NEVER_STEPS).astype(jnp.int32)
+        p = _retime(p, interval, step, cells)
+    return p
+
+
+def min_interval_steps(config: NetworkConfig) -> int:
+    """The shortest train interval of any generator, steps (bounds the spikes one train has in a window)."""
+    rates = [config.p_rate_hz] + [config.spec.population(n).rate_hz for n in config.spec.target_codes]
+    return min(max(1, config.steps(1000.0 / r)) for r in rates)
 
 
 def p_step(p: PState, step):

@@ -125,13 +125,18 @@ class WiringLayout:
 
     @cached_property
     def generator_pathways(self) -> tuple[Pathway, ...]:
-        """The pathways from the generator population (last in the synapse order)."""
-        return tuple(pw for pw in self.pathways if pw.pre == self.config.spec.proprio)
+        """The pathways from generator populations (the plastic ones among the first, the fixed ones last)."""
+        return tuple(pw for pw in self.pathways if pw.pre in self.config.spec.generators)
 
     @cached_property
-    def generator_synapses(self) -> slice:
-        """The synapse indices of every pathway from the generator population (one contiguous block, last)."""
-        return slice(self.n_network_syn, self.n_syn)
+    def generator_synapses(self) -> "slice | np.ndarray":
+        """The synapse indices of every pathway from a generator, delivered once per chunk: a slice when they are
+        one block (the paper's P -> ES, last), else an int32 index array (plastic ones from a target code)."""
+        ids = np.concatenate([np.arange(self.synapses(pw.name).start, self.synapses(pw.name).stop)
+                              for pw in self.generator_pathways]).astype(np.int32)
+        if np.all(np.diff(ids) == 1):
+            return slice(int(ids[0]), int(ids[-1]) + 1)
+        return ids
 
     @cached_property
     def in_degree(self) -> dict[str, int]:
@@ -156,9 +161,9 @@ class WiringLayout:
 
     @cached_property
     def n_network_syn(self) -> int:
-        """Synapses between network cells (everything but the generator's pathways)."""
+        """Synapses between network cells (everything but the generators' pathways)."""
         return sum(self.config.size(pw.post) * self.in_degree[pw.name] for pw in self.pathways
-                   if pw.pre != self.config.spec.proprio)
+                   if pw.pre not in self.config.spec.generators)
 
     def pathway(self, name: str) -> Pathway:
         return self.config.spec.pathway(name)
@@ -295,8 +300,13 @@ def _build_wiring(config: NetworkConfig, pre_syn, delay_ms) -> Wiring:
     nmda = jnp.concatenate(nmdas + [jnp.zeros(1, jnp.float32)])
     target = jnp.concatenate(targets + [jnp.zeros(1, jnp.int32)])
     packed = (target << DELAY_BITS) | delay
-    n_net = layout.n_network_syn  # the generator's pathways (last) are delivered separately
-    by_pre, overflow = _delivery_lists(pre[:n_net], config.n_cells, max(layout.out_capacity), layout.n_syn)
+    gen = layout.generator_synapses   # delivered separately (the P window): in no delivery table
+    if isinstance(gen, slice) and gen.stop == layout.n_syn:     # the paper's: P -> ES, the last block
+        by_pre, overflow = _delivery_lists(pre[:gen.start], config.n_cells, max(layout.out_capacity), layout.n_syn)
+    else:
+        net_ids = np.setdiff1d(np.arange(layout.n_syn), np.arange(layout.n_syn)[gen]).astype(np.int32)
+        local, overflow = _delivery_lists(pre[net_ids], config.n_cells, max(layout.out_capacity), len(net_ids))
+        by_pre = jnp.asarray(np.append(net_ids, layout.n_syn).astype(np.int32))[local]
     groups = []
     for cells, width, in_plastic_np in zip(layout.group_cells, layout.out_capacity, layout.plastic_inputs):
         rows = np.append(cells, config.n_cells)  # + the "no spike" row (all padding)

@@ -138,6 +138,13 @@ def status() -> str:
 ALIASES = {0: 0, 1: 1, 2: 2, 3: 3, 4: 4, 5: 5, 6: 6, 7: 7, 8: 8, 13: 9, 15: 10, 16: 11, 17: 12, 18: 13, 30: 14}
 
 
+@functools.lru_cache(maxsize=None)
+def _generator_synapse_ids(net: "Network") -> np.ndarray:
+    """(n_generator_synapses,) int32 ids of the synapses the kernel delivers from generator trains."""
+    ps = net.p_synapses
+    return np.arange(ps.start, ps.stop, dtype=np.int32) if isinstance(ps, slice) else np.asarray(ps, np.int32)
+
+
 def _as(x, dtype):
     return jnp.asarray(x).astype(dtype)
 
@@ -164,22 +171,22 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
         _as(s.p.interval_steps, jnp.int32), _as(s.noise.step_seed, jnp.uint32), _as(s.noise.lane_key, jnp.uint32),
         _as(s.noise.thresholds, jnp.uint32), s.ring, s.wgain, s.pdope_ms, s.last_spike_ms, s.prev_spike_ms,
         _as(s.spike_count, jnp.int32), _as(params.max_plast_t_ms, jnp.float32),
-        _as(wiring.pre[ps] - net.pops.start[c.spec.proprio], jnp.int32), _as(wiring.delay_steps[ps], jnp.int32),
+        _as(wiring.pre[ps] - c.n_cells, jnp.int32), _as(wiring.delay_steps[ps], jnp.int32),
         _as(wiring.target[ps], jnp.int32), _as(wiring.weight[ps], jnp.float32), _as(wiring.nmda[ps], jnp.float32),
         jnp.asarray(net.native_cell_floats), jnp.asarray(net.cell_constants.n_refractory, jnp.int32),
         jnp.asarray(net.noise_weights), jnp.asarray(net.native_cell_group), jnp.asarray(net.native_cell_row),
-        _as(s.noise.events_left, jnp.int32), *groups,
+        _as(s.noise.events_left, jnp.int32), jnp.asarray(_generator_synapse_ids(net)), *groups,
     ]
     n, n_all = c.n_cells, c.n_all
     f32, i32 = jnp.float32, jnp.int32
     sds = jax.ShapeDtypeStruct
-    out_types = [sds((), i32)] + [sds((n,), f32)] * 6 + [sds((n,), i32), sds((c.n_p,), i32), sds(s.ring.shape, f32),
+    out_types = [sds((), i32)] + [sds((n,), f32)] * 6 + [sds((n,), i32), sds((c.n_generators,), i32), sds(s.ring.shape, f32),
                                                       sds(s.pdope_ms.shape, f32), sds((n_all,), f32),
                                                       sds((n_all,), f32), sds((n_all,), i32),
                                                       sds((3, n), i32), sds((n_steps, n_all), jnp.bool_)]
     call = jax.ffi.ffi_call(TARGET, out_types, vmap_method="expand_dims", input_output_aliases=ALIASES)
     outs = call(*args, n_steps=np.int64(n_steps), n_slots=np.int64(net.n_slots),
-                p_syn_offset=np.int64(ps.start), sequential=np.int64(c.event_summation == "sequential"),
+                sequential=np.int64(c.event_summation == "sequential"),
                 on_event=np.int64(c.threshold_test == "on_event"), per_event=np.int64(c.crossing == "per_event"),
                 dt_ms=np.float32(c.dt_ms), excitatory=np.asarray(lay.group_is_excitatory, np.int64),
                 n_threads=np.int64(c.native_threads), delay_bits=np.int64(DELAY_BITS),

@@ -2,7 +2,8 @@
 // jaxarm.network.network.Network._chunk). Units: ms and mV, as in the Python network.
 //
 // Same model, same order of operations per step as the XLA path:
-//   1. P -> ES input of the whole chunk written into the ring at the chunk start (deliver_p_window);
+//   1. the generators' input (the paper's P -> ES) of the whole chunk written into the ring at the chunk start
+//      (deliver_p_window); "P" below stands for every generator cell (ids n_all - n_p .. n_all - 1);
 //   2. per step m: read and clear ring slot m % n_slots; Poisson noise counts from the integer hash
 //      (bit-identical to noise.noise_counts), limited by each lane's event budget (noise.draw_events); INTF6 cell update (cell.cell_step); P trains (proprio.p_step);
 //      last / previous spike times and spike counts; spikes of the step delivered into the ring at
@@ -40,7 +41,7 @@ constexpr uint32_t kGolden = 0x9E3779B9u;
 enum In {
   kStep, kAmpa, kNmda, kGabaProx, kGabaDist, kAhp, kExcess, kSince, kPNext, kPInterval, kStepSeed, kLaneKey,
   kThresholds, kRing, kWgain, kPdope, kLast, kPrev, kCount, kWindow, kPPre, kPDelay, kPTarget, kPWeight, kPNmda,
-  kCellF, kNRef, kNoiseW, kCellGroup, kCellRow, kEventsLeft, kGroupTables  // then 6 tables per group
+  kCellF, kNRef, kNoiseW, kCellGroup, kCellRow, kEventsLeft, kPSyn, kGroupTables  // then 6 tables per group
 };
 constexpr int kTablesPerGroup = 6;  // out_syn, out_packed, out_weight, out_nmda, in_plastic, in_plastic_pre
 // Outputs, in order.
@@ -48,7 +49,7 @@ enum Out { oStep, oAmpa, oNmda, oGabaProx, oGabaDist, oAhp, oExcess, oSince, oPN
            oCount, oEventsLeft, oSpikes, kNumOut };
 // Per-network rank of every input (the rest of an input's dimensions are batch dimensions).
 constexpr int kBaseRankFixed[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0, 2, 3, 1, 1, 1, 1, 1, 1, 0, 1, 1, 1, 1, 1,
-                                  2, 1, 2, 1, 1, 2};
+                                  2, 1, 2, 1, 1, 2, 1};
 constexpr int kBaseRankOut[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2};
 
 inline uint32_t hash32(uint32_t x) {
@@ -71,7 +72,7 @@ struct View {  // one input or output: base pointer, per-network element count, 
 };
 
 struct Attrs {
-  int64_t n_steps, n_slots, p_syn_offset, n_groups, sequential, on_event, per_event, exc[8];
+  int64_t n_steps, n_slots, n_groups, sequential, on_event, per_event, exc[8];
   float dt_ms;
   // NetworkSpec.physics, mV and 1/mV
   float e_ampa, e_nmda, e_gaba, mg, mg0, mg_slope, vm_min, vm_max, max_jump_fraction;
@@ -231,6 +232,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   const int32_t* p_delay = at<int32_t>(in[kPDelay], I(kPDelay));
   const int32_t* p_target = at<int32_t>(in[kPTarget], I(kPTarget));
   const float* p_weight = at<float>(in[kPWeight], I(kPWeight));
+  const int32_t* p_syn = at<int32_t>(in[kPSyn], I(kPSyn));   // synapse id of each generator synapse
   const float* p_nmda = at<float>(in[kPNmda], I(kPNmda));
   const float* cf = at<float>(in[kCellF], I(kCellF));
   const float *rmp = cf, *vth = cf + n, *vblock = cf + 2 * n, *ahpwt = cf + 3 * n, *post_excess = cf + 4 * n,
@@ -275,14 +277,14 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   const int delay_bits = int(a.delay_bits);
   const int32_t delay_mask = (int32_t(1) << delay_bits) - 1;
 
-  // 1. P -> ES input of every P spike in (first_step, first_step + n_steps].
+  // 1. generator (P) input of every generator spike in (first_step, first_step + n_steps].
   {
     const int64_t last_step = int64_t(first_step) + n_steps;
     for (int64_t k = 0; k < n_psyn; ++k) {
       const int32_t pre = p_pre[k];
       int64_t spike = p_next[pre];
       if (spike > last_step) continue;
-      float w = p_weight[k] * wgain[a.p_syn_offset + k];
+      float w = p_weight[k] * wgain[p_syn[k]];
       if (seq) w = event_load(w, e_ampa, jump_cap);
       const int32_t interval = p_interval[pre];
       while (spike <= last_step) {
@@ -446,7 +448,7 @@ View view_of(const ffi::AnyBuffer& b, int base_rank, int batch_rank) {
 }
 
 ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n_steps, int64_t n_slots,
-                     int64_t p_syn_offset, int64_t sequential, int64_t on_event, int64_t per_event, float dt_ms,
+                     int64_t sequential, int64_t on_event, int64_t per_event, float dt_ms,
                      ffi::Span<const int64_t> excitatory, int64_t n_threads, float e_ampa_mv, float e_nmda_mv,
                      float e_gaba_mv, float mg_mm, float mg0_mm, float mg_slope_per_mv, float vm_min_mv,
                      float vm_max_mv, float max_jump_fraction, int64_t delay_bits) {
@@ -476,7 +478,7 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
     if (r.has_error()) return r.error();
     out[k] = view_of(**r, kBaseRankOut[k], batch_rank);
   }
-  Attrs a{n_steps,   n_slots,   p_syn_offset, n_groups, sequential, on_event,        per_event, {0},
+  Attrs a{n_steps,   n_slots,   n_groups, sequential, on_event,        per_event, {0},
           dt_ms,     e_ampa_mv, e_nmda_mv,    e_gaba_mv, mg_mm,     mg0_mm,   mg_slope_per_mv, vm_min_mv,
           vm_max_mv, max_jump_fraction, delay_bits};
   for (int64_t g = 0; g < n_groups; ++g) a.exc[g] = excitatory[g];
@@ -515,7 +517,6 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
                                   .RemainingRets()
                                   .Attr<int64_t>("n_steps")
                                   .Attr<int64_t>("n_slots")
-                                  .Attr<int64_t>("p_syn_offset")
                                   .Attr<int64_t>("sequential")
                                   .Attr<int64_t>("on_event")
                                   .Attr<int64_t>("per_event")
