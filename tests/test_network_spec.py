@@ -99,12 +99,17 @@ def test_a_spec_round_trips_through_toml_and_json(tmp_path):
     (lambda s: s.with_pathway(Pathway("ES", "XX", 0.1, 1.0, (1.0, 2.0))), r"Pathway ES->XX: no population 'XX'"),
     (lambda s: s.with_pathway(Pathway("ES", "P", 0.1, 1.0, (1.0, 2.0))), r"'P' takes no input"),
     (lambda s: s.with_pathway(Pathway("P", "EM", 0.1, 1.0, (1.0, 2.0), plastic=True)), r"P->EM: pathways from the "
-                                                                                        "generator .*cannot be plastic"),
+                                                                                        "proprioceptive code cannot"),
     (lambda s: dataclasses.replace(s, pathways=s.pathways[1:] + s.pathways[:1]), r"plastic pathways must come first"),
     (lambda s: s.with_pathway(Pathway("ES", "ES", 0.1, 1.0, (1.0, 2.0), plastic=True)), r"ES->ES: given twice"),
     (lambda s: s.with_sizes((192, 44, 20, 190, 44, 20, 192)), r"Population 'EM'.size = 190: must be a multiple of 4"),
     (lambda s: s.with_population(Population("EX", 8, "XX", E_NOISE)), r"Population 'EX'.cell_type = 'XX': one of"),
-    (lambda s: dataclasses.replace(s, populations=s.populations[-1:] + s.populations[:-1]), r"must come last"),
+    (lambda s: dataclasses.replace(s, populations=s.populations[-1:] + s.populations[:-1]), r"generator populations "
+                                                                                              "come last"),
+    (lambda s: s.with_population(Population("T", 8, "generator")), r"Population 'T'.code = '': a generator"),
+    (lambda s: s.with_population(Population("T", 12, "generator", code="target", groups=8, rate_hz=50.0)),
+     r"Population 'T'.groups = 8: an integer in \[1, 64\] that divides its size 12"),
+    (lambda s: s.with_population(Population("T", 8, "generator", code="proprioceptive")), r"exactly one generator"),
     (lambda s: Population("EX", 0, "E", E_NOISE), r"Population 'EX'.size = 0: an integer in \[1, 100000\]"),
     (lambda s: Population("EX", 8, "E", E_NOISE[:2]), r"Population 'EX'.noise .*one \(weight mV, rate Hz\) pair"),
     (lambda s: Pathway("ES", "EM", 0.3, 2.6, (5.0, 3.0)), r"Pathway ES->EM.delay_ms .*low must not exceed high"),
@@ -127,7 +132,7 @@ def test_bad_spec_files_name_the_key(tmp_path):
     with pytest.raises(ConfigError, match="physics: unknown field.*e_gaba"):
         NetworkConfig.load(bad)
     bad.write_text('[[pathways]]\npre = "ES"\npost = "EM"\npmat = 0.3\nweight_mv = 2.6\ndelay_ms = [3, 5]\n')
-    with pytest.raises(ConfigError, match="pathways from 'P' come last"):   # a list replaces the whole list
+    with pytest.raises(ConfigError, match=r"with at least one from 'P'; got ES->EM"):   # a list replaces the list
         NetworkConfig.load(bad)
 
 
@@ -194,3 +199,81 @@ def test_an_extended_network_learns_on_its_new_synapses():
     assert np.any(gains != 1.0), "reward-modulated STDP should change some ES->EX gains"
     assert np.all(np.ptp(fixed, axis=1) < 1e-6), "IS->EX is fixed (synaptic scaling moves a cell's inputs alike)"
     assert int(np.asarray(history.lost_spikes).sum()) == 0
+
+
+# ------------------------------------------------------------------------------------------------ target codes
+def _with_target_code(kernel: str, plastic: bool = True) -> NetworkConfig:
+    """The paper's network plus T, a target code of 16 cells in 8 direction groups firing at 50 Hz, projecting to
+    EM (plastic) and IM (fixed)."""
+    spec = NetworkSpec.dura_bernal_2015().with_population(
+        Population("T", 16, "generator", code="target", groups=8, rate_hz=50.0))
+    spec = spec.with_pathway(Pathway("T", "EM", 0.5, 2.0, (3.0, 5.0), plastic=plastic))
+    spec = spec.with_pathway(Pathway("T", "IM", 0.5, 1.0, (3.0, 5.0)))
+    return NetworkConfig(spec=spec, kernel=kernel)
+
+
+def test_a_target_code_fires_its_directions_train_and_nothing_else():
+    """Direction 90 degrees is group 2 of 8: T cells 2 and 10 fire at 50 Hz (one interval, 20 ms, after the
+    switch at step 0, then every 20 ms: 10 spikes in 200 ms), the 14 others never; P and the network as before."""
+    config = _with_target_code("xla")
+    assert config.populations[-2:] == ("P", "T") and config.n_generators == 192 + 16
+    net = Network(config)
+    layout = net.layout
+    assert isinstance(layout.generator_synapses, np.ndarray)       # T->EM is among the plastic synapses
+    assert layout.synapses("T->EM").stop == layout.n_plastic
+    state = net.set_lengths(net.set_target(net.init(jax.random.key(1)), np.pi / 2), jnp.array([0.1, 0.16, 0.12, 0.14]))
+    wiring = net.make_wiring(jax.random.key(0))
+    state, spikes = jax.jit(lambda w, s: net.run(w, s, NetworkParams.original(), 800))(wiring, state)
+    t = np.asarray(spikes)[:, 704:720]
+    expected = np.zeros(16, int)
+    expected[[2, 10]] = 10
+    np.testing.assert_array_equal(t.sum(axis=0), expected)
+    np.testing.assert_array_equal(np.flatnonzero(t[:, 2]) + 1, np.arange(80, 801, 80))      # steps of 0.25 ms
+    # the delivery tables list every synapse between network cells once, and no generator synapse
+    ids = np.concatenate([np.asarray(g.out_syn)[:-1].ravel() for g in wiring.groups])
+    ids = np.sort(ids[ids < layout.n_syn])
+    gen = np.arange(layout.n_syn)[layout.generator_synapses]
+    np.testing.assert_array_equal(ids, np.setdiff1d(np.arange(layout.n_syn), gen))
+
+
+@needs_native
+@pytest.mark.slow
+def test_a_target_code_runs_alike_on_both_kernels():
+    nets = [Network(_with_target_code(k)) for k in ("xla", "native")]
+    keys = jax.random.split(jax.random.key(3), 2)
+    wirings = jax.vmap(nets[0].make_wiring)(keys)
+
+    def start(net, key):
+        s = net.set_em_rates(net.init(key), jnp.asarray((152.76, 50.0, 50.0, 50.0), jnp.float32))
+        return net.set_lengths(net.set_target(s, np.pi), jnp.array([0.10, 0.16, 0.12, 0.14]))
+
+    s0 = jax.vmap(lambda k: start(nets[0], k))(jax.random.split(jax.random.key(4), 2))
+    out = [jax.jit(jax.vmap(lambda w, s, net=net: net.run(w, s, NetworkParams.original(), 1000)))(wirings, s0)
+           for net in nets]
+    np.testing.assert_array_equal(np.asarray(out[0][1]), np.asarray(out[1][1]))
+    np.testing.assert_array_equal(np.asarray(out[0][0].pdope_ms), np.asarray(out[1][0].pdope_ms))
+    assert np.asarray(out[0][1])[:, :, 704:].sum() == 2 * 2 * 12     # group 4 (180 deg): 2 cells x 12 spikes
+
+
+def test_a_plastic_target_code_learns_only_from_its_active_direction():
+    """Training toward the left target (180 degrees from the start hand position: group 4 of 8): the T->EM synapses
+    from group 4's cells are tagged and change under reward-modulated STDP; those from silent cells only move with
+    their post cell's synaptic scaling (equal within a post cell)."""
+    from jaxarm.learning.metaparams import MetaParams
+    from jaxarm.loop import LoopConfig
+    from jaxarm.task.config import TaskConfig
+    from jaxarm.train import make_train
+
+    config = LoopConfig(arm="simple", network=_with_target_code("auto"),
+                        task=TaskConfig(target="left", epochs=1, epoch_duration_s=2.0, test_duration_s=0.2))
+    fns = make_train(config)
+    carry = jax.jit(fns.init)(jax.random.PRNGKey(0))
+    carry, _ = jax.jit(fns.epoch)(carry, MetaParams.original())
+    layout = fns.loop.net.layout
+    gains = np.asarray(layout.view(carry.trained.wgain, "T->EM"))
+    pre = np.asarray(layout.view(carry.trained.wiring.pre, "T->EM")) - 704
+    active = pre % 8 == 4
+    assert active.any() and (~active).any()
+    assert np.any(gains[active] != 1.0), "synapses from the active direction should learn"
+    silent = np.where(active, np.nan, gains)
+    assert np.all(np.nan_to_num(np.nanmax(silent, axis=1) - np.nanmin(silent, axis=1)) < 1e-6)

@@ -203,7 +203,7 @@ def test_pathway_order_and_int32_limits_are_checked():
     spec = NetworkSpec.dura_bernal_2015()
     with pytest.raises(ConfigError, match="plastic pathways must come first"):
         dataclasses.replace(spec, pathways=PATHWAYS[1:] + PATHWAYS[:1])
-    with pytest.raises(ConfigError, match="pathways from 'P' come last"):
+    with pytest.raises(ConfigError, match=r"fixed pathways from generators \(P\) come last"):
         dataclasses.replace(spec, pathways=PATHWAYS[:-2] + PATHWAYS[-1:] + PATHWAYS[-2:-1])
     # 4 channels x n_cells << 10 must fit int32: 524,287 network cells at most
     with pytest.raises(ConfigError, match="at most 524287"):
