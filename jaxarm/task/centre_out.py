@@ -1,0 +1,120 @@
+"""Centre-out reaching to several targets with one network: the targets alternate epoch by epoch during training,
+a target code (a generator population, :mod:`jaxarm.network.proprio`) tells the network which one is current, and
+every network is tested on every target.
+
+The eight targets are the original's own centre-out set (``centerOutTask``, :data:`jaxarm.task.config.
+TARGET_ANGLES_RAD`): 15.1 cm from the start hand position every 45 degrees, all inside the simple arm's joint
+ranges. :data:`CENTRE_OUT_8` lists them by direction (0, 45, ..., 315 degrees counterclockwise from +x), so target
+k is direction group k of an 8-group target code.
+
+    task = CentreOut()                                    # the eight targets, 3 epochs each, cycled
+    net = NetworkConfig(spec=with_target_code(NetworkSpec.dura_bernal_2015()))
+    fns = make_centre_out_train(LoopConfig(network=net, task=task.task_config()), task)
+    trained, history = fns.train(key, mp)                 # epoch e trains toward target e % 8
+    results = fns.test(key, trained, mp)                  # TestResult with a leading (8,) target axis
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from jaxarm.config.spec import GENERATOR, NetworkSpec, Pathway, Population
+from jaxarm.config.validate import ConfigError, check_range
+from jaxarm.task.config import TARGET_ANGLES_RAD, Target, TaskConfig
+
+#: The original's eight centre-out targets by direction from the start hand position: 0, 45, ..., 315 degrees.
+#: (The original's names: "left-bottom" lies at -45 degrees and "right-bottom" at -135 degrees.)
+CENTRE_OUT_8 = ("right", "right-top", "top", "left-top", "left", "right-bottom", "bottom", "left-bottom")
+
+
+@dataclass(frozen=True)
+class CentreOut:
+    """The task as data: ``targets`` (names of :data:`~jaxarm.task.config.TARGET_ANGLES_RAD`, in target-code group
+    order), ``epochs_per_target`` training epochs of ``epoch_duration_s`` toward each, cycled (epoch e trains toward
+    target e % n), and the usual test (``test_duration_s``, ``success_radius_m``) on every target."""
+
+    targets: tuple[str, ...] = CENTRE_OUT_8
+    epochs_per_target: int = 3
+    epoch_duration_s: float = 30.0
+    test_duration_s: float = 1.0
+    success_radius_m: float = 0.04
+
+    def __post_init__(self):
+        if not self.targets or any(t not in TARGET_ANGLES_RAD for t in self.targets) \
+                or len(set(self.targets)) != len(self.targets):
+            raise ConfigError(f"CentreOut.targets = {self.targets!r}: distinct names among "
+                              f"{', '.join(TARGET_ANGLES_RAD)}")
+        check_range(self, "epochs_per_target", 1, 1000, integer=True)
+
+    def task_config(self) -> TaskConfig:
+        """The per-run settings (the named target is only the default; every run gets its target explicitly)."""
+        return TaskConfig(target=self.targets[0], epochs=self.epochs_per_target * len(self.targets),
+                          epoch_duration_s=self.epoch_duration_s, test_duration_s=self.test_duration_s,
+                          success_radius_m=self.success_radius_m)
+
+    def stacked_targets(self) -> Target:
+        """(n_targets, 2) Target arrays, in ``targets`` order."""
+        return Target.stack(self.targets)
+
+    def directions_deg(self) -> tuple[float, ...]:
+        """Direction of each target from the start hand position, degrees counterclockwise from +x."""
+        x0, y0 = self.task_config().start_xy_m
+        return tuple(math.degrees(math.atan2(float(t[1]) - y0, float(t[0]) - x0))
+                     for t in self.stacked_targets().xy_m)
+
+
+def with_target_code(spec: NetworkSpec, task: CentreOut = CentreOut(), name: str = "T", cells_per_target: int = 8,
+                     rate_hz: float = 100.0, posts: tuple[str, ...] = ("EM",), pmat: float = 0.2,
+                     weight_mv: float = 2.0, plastic: bool = True) -> NetworkSpec:
+    """``spec`` with a target code: ``cells_per_target`` x n_targets generator cells in n_targets direction groups
+    (firing at ``rate_hz`` while their target is current), projecting to each of ``posts`` with density ``pmat``,
+    AMPA weight ``weight_mv`` (mV), 3-5 ms delays, plastic by default (so reward-modulated STDP can tie each
+    target's cells to the motor commands that reach it)."""
+    n = len(task.targets)
+    for k, d in enumerate(task.directions_deg()):
+        if abs((d - 360.0 * k / n + 180.0) % 360.0 - 180.0) > 1.0:
+            raise ConfigError(f"CentreOut.targets: target {k} ({task.targets[k]}) lies at {d:.1f} degrees; a target "
+                              f"code needs target k at k x {360.0 / n:g} degrees (direction group k)")
+    spec = spec.with_population(Population(name, cells_per_target * n, GENERATOR, code="target", groups=n,
+                                           rate_hz=rate_hz))
+    for post in posts:
+        spec = spec.with_pathway(Pathway(name, post, pmat, weight_mv, (3.0, 5.0), plastic=plastic))
+    return spec
+
+
+class CentreOutFns(NamedTuple):
+    """``train(key, mp) -> (Trained, EpochSummary history)``; ``test(key, trained, mp) -> TestResult`` with a
+    leading target axis; ``fns``: the underlying :class:`jaxarm.train.TrainFns`."""
+
+    train: Callable
+    test: Callable
+    fns: object
+
+
+def make_centre_out_train(config, task: CentreOut = CentreOut(), record=None) -> CentreOutFns:
+    """Pure train and test functions of the centre-out task for one static ``config`` (a LoopConfig whose task is
+    ``task.task_config()``; it is replaced by that if it differs)."""
+    from jaxarm.train import make_train
+
+    if config.task != task.task_config():
+        config = replace(config, task=task.task_config())
+    fns = make_train(config, record)
+    targets = jax.tree.map(jnp.asarray, task.stacked_targets())
+    n = len(task.targets)
+
+    def train(key, mp):
+        def epoch(carry, _):
+            target = jax.tree.map(lambda a: a[carry.epoch % n], targets)
+            return fns.epoch(carry, mp, target)
+
+        carry, history = jax.lax.scan(epoch, fns.init(key), None, length=config.task.epochs)
+        return carry.trained, history
+
+    def test(key, trained, mp):
+        return jax.vmap(fns.test, in_axes=(None, None, None, 0))(key, trained, mp, targets)
+
+    return CentreOutFns(train=train, test=test, fns=fns)
