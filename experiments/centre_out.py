@@ -25,13 +25,10 @@ import numpy as np
 
 
 def run_condition(name, args, mp):
-    import jax
-
     from jaxarm.config.network import NetworkConfig
     from jaxarm.config.spec import NetworkSpec
     from jaxarm.loop import LoopConfig
-    from jaxarm.run import network_keys
-    from jaxarm.task.centre_out import CentreOut, make_centre_out_train, with_target_code
+    from jaxarm.task.centre_out import CentreOut, train_and_test, with_target_code
 
     task = CentreOut(epochs_per_target=args.epochs_per_target, epoch_duration_s=args.epoch_s)
     spec = NetworkSpec.dura_bernal_2015()
@@ -40,31 +37,13 @@ def run_condition(name, args, mp):
                                 posts=tuple(args.code_posts.split(",")), pmat=args.code_pmat,
                                 weight_mv=args.code_weight_mv)
     net = NetworkConfig(spec=spec, native_threads=os.cpu_count() or 1)
-    fns = make_centre_out_train(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task)
-    keys = network_keys(range(args.seed, args.seed + args.networks))
     t0 = time.perf_counter()
-    trained, history = jax.jit(jax.vmap(fns.train, in_axes=(0, None)))(keys, mp)
-    jax.block_until_ready(trained.wgain)
-    train_s = time.perf_counter() - t0
-    test = jax.jit(jax.vmap(fns.test, in_axes=(0, 0, None)))
-    res = test(keys, trained, mp)
-    naive = test(keys, jax.jit(jax.vmap(lambda k: fns.fns.init(k).trained))(keys), mp)
-    ok, ok_naive = np.asarray(res.success), np.asarray(naive.success)          # (networks, targets)
-    lost = int(np.asarray(history.lost_spikes).sum()) + int(np.asarray(res.lost_spikes).sum())
-    return {
-        "condition": name, "targets": list(task.targets), "directions_deg": [round(d, 1) for d in task.directions_deg()],
-        "per_target": {t: int(ok[:, k].sum()) for k, t in enumerate(task.targets)},
-        "per_target_naive": {t: int(ok_naive[:, k].sum()) for k, t in enumerate(task.targets)},
-        "targets_reached_per_network": np.bincount(ok.sum(axis=1), minlength=len(task.targets) + 1).tolist(),
-        "targets_reached_per_network_naive": np.bincount(ok_naive.sum(axis=1),
-                                                         minlength=len(task.targets) + 1).tolist(),
-        "median_min_distance_cm": {t: round(100 * float(np.median(np.asarray(res.min_distance_m)[:, k])), 2)
-                                   for k, t in enumerate(task.targets)},
-        "median_min_distance_cm_naive": {t: round(100 * float(np.median(np.asarray(naive.min_distance_m)[:, k])), 2)
-                                         for k, t in enumerate(task.targets)},
-        "success": ok.astype(int).tolist(), "lost_spikes": lost,
-        "network_seconds": args.networks * task.task_config().epochs * args.epoch_s, "train_wall_s": round(train_s, 1),
-    }
+    r = train_and_test(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task,
+                       range(args.seed, args.seed + args.networks), mp)
+    for k in ("trained", "naive"):
+        r[k].pop("hand_m")
+    return {"condition": name, **r, "network_seconds": args.networks * task.task_config().epochs * args.epoch_s,
+            "wall_s": round(time.perf_counter() - t0, 1)}
 
 
 def main(argv=None) -> int:
@@ -98,17 +77,18 @@ def main(argv=None) -> int:
         r = run_condition(name, args, mp)
         out["conditions"][name] = r
         (args.out / "centre_out.json").write_text(json.dumps(out, indent=1))
-        print(f"{name}: trained in {r['train_wall_s']} s ({r['network_seconds']:g} network-s); lost spikes "
+        print(f"{name}: trained and tested in {r['wall_s']} s ({r['network_seconds']:g} network-s); lost spikes "
               f"{r['lost_spikes']}")
     conds = list(out["conditions"].values())
     print(f"\n| target (direction) | " + " | ".join(f"{c['condition']}: trained (naive)" for c in conds) + " |")
     print("|---|" + "---|" * len(conds))
     for k, t in enumerate(conds[0]["targets"]):
-        cells = [f"{c['per_target'][t]}/{args.networks} ({c['per_target_naive'][t]}/{args.networks})" for c in conds]
+        cells = [f"{c['trained']['per_target'][t]}/{args.networks} ({c['naive']['per_target'][t]}/{args.networks})"
+                 for c in conds]
         print(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
     for c in conds:
-        print(f"{c['condition']}: networks by number of targets reached (0..8): {c['targets_reached_per_network']}"
-              f" (naive {c['targets_reached_per_network_naive']})")
+        print(f"{c['condition']}: networks by number of targets reached (0..8): "
+              f"{c['trained']['targets_reached_per_network']} (naive {c['naive']['targets_reached_per_network']})")
     print("->", args.out / "centre_out.json")
     return 0
 

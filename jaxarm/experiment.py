@@ -308,10 +308,17 @@ def train_main(argv: list[str] | None = None) -> int:
                    help=f"gradient learning: length of one training reach (one step), s (default {default.reach_s:g})")
     g.add_argument("--gradient-params", choices=("plastic", "all"), default=default.params,
                    help="gradient learning: the gains trained: plastic (those R-STDP trains, default) or all")
+    ap.add_argument("--task", choices=("reaching", "centre-out-8"), default="reaching",
+                    help="reaching (default): one --target per network, the paper's task; centre-out-8: the "
+                         "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
+                         "epoch, a target code added to the network unless --network has one, every network tested "
+                         "on every target (jaxarm.task.centre_out; one process, no checkpoints)")
     add_record_arguments(ap, train=True)
     parallel.add_arguments(ap)
     args = ap.parse_args(argv)
     _check(ap, args)
+    if args.task == "centre-out-8":
+        return _centre_out_main(ap, args)
     try:
         parallel.start_from_arguments(args)
         configs = _configs(args)
@@ -340,6 +347,47 @@ def train_main(argv: list[str] | None = None) -> int:
                   f"{np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm -> {out / 'results.json'}")
     if len(configs) > 1 and parallel.is_main_process():
         (args.out / "summary.json").write_text(json.dumps({"success_count": summary, "networks": args.networks}))
+    return 0
+
+
+def _centre_out_main(ap, args) -> int:
+    """``jaxarm train --task centre-out-8``: train and test in one batch, write results.json and trajectories.npz."""
+    import dataclasses
+    import time
+
+    from jaxarm.task.centre_out import CentreOut, train_and_test, with_target_code
+
+    try:
+        if args.learning != "rstdp" or args.record_spikes:
+            raise ConfigError("--task centre-out-8: R-STDP learning only, without --record-spikes (not yet)")
+        task = CentreOut(epochs_per_target=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s)
+        net = network_config(args)
+        if not net.spec.target_codes:
+            net = dataclasses.replace(net, spec=with_target_code(net.spec, task))
+        if args.coordinator or args.num_processes:
+            raise ConfigError("--task centre-out-8 runs in one process (no --coordinator yet)")
+        # every usable core as the native kernel's threads (--devices N narrows it), the batch in one process
+        net = dataclasses.replace(net, native_threads=args.devices or parallel.usable_cores())
+        config = LoopConfig(arm=args.arm, backend=args.backend, network=net, task=task.task_config())
+        mp = MetaParams.from_dict(_parse_overrides(args.overrides))
+    except ConfigError as e:
+        ap.error(str(e))
+    seeds = list(range(args.seed, args.seed + args.networks))
+    t0 = time.perf_counter()
+    r = train_and_test(config, task, seeds, mp)
+    wall = time.perf_counter() - t0
+    args.out.mkdir(parents=True, exist_ok=True)
+    hands = {k: r[k].pop("hand_m") for k in ("trained", "naive")}
+    results = {"task": "centre-out-8", **r, "n_networks": args.networks,
+               "network_seconds": args.networks * task.task_config().epochs * args.epoch_s, "wall_s": round(wall, 1),
+               "config": {"loop": _jsonable(dataclasses.asdict(config)), "metaparams": mp.to_dict()}}
+    (args.out / "results.json").write_text(json.dumps(results, indent=1))
+    np.savez_compressed(args.out / "trajectories.npz", hand=hands["trained"], naive_hand=hands["naive"],
+                        target=np.asarray(task.stacked_targets().xy_m), seeds=np.asarray(seeds))
+    print(f"{args.arm} arm, eight centre-out targets, {args.networks} networks: "
+          + ", ".join(f"{t} {n}/{args.networks}" for t, n in r["trained"]["per_target"].items())
+          + f" (naive: {sum(r['naive']['per_target'].values())} reaches in all); networks by targets reached (0..8): "
+          f"{r['trained']['targets_reached_per_network']} -> {args.out / 'results.json'}")
     return 0
 
 

@@ -70,3 +70,23 @@ def test_the_target_code_changes_the_reach_and_the_control_does_not():
     assert all(np.array_equal(hands["control"][0], h) for h in hands["control"][1:])
     # with it, the eight tests differ (a different group of target cells drives the motor cells each time)
     assert sum(not np.array_equal(hands["code"][0], h) for h in hands["code"][1:]) >= 6
+
+
+@pytest.mark.slow
+def test_the_command_line_trains_and_tests_the_eight_targets(tmp_path):
+    import json
+
+    from jaxarm.cli import main
+
+    out = tmp_path / "co"
+    assert main(["train", "--task", "centre-out-8", "--networks", "2", "--epochs", "1", "--epoch-s", "0.2",
+                 "--test-s", "0.2", "--out", str(out)]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert r["targets"] == list(CENTRE_OUT_8) and len(r["trained"]["success"]) == 2
+    assert sum(r["trained"]["targets_reached_per_network"]) == 2
+    spec = r["config"]["loop"]["network"]["spec"]
+    assert [p["name"] for p in spec["populations"]][-2:] == ["P", "T"]       # the target code was added
+    hand = np.load(out / "trajectories.npz")["hand"]
+    assert hand.shape == (2, 8, 21, 2)
+    with pytest.raises(SystemExit):
+        main(["train", "--task", "centre-out-8", "--learning", "gradient", "--out", str(tmp_path / "g")])

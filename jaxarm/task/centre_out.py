@@ -118,3 +118,32 @@ def make_centre_out_train(config, task: CentreOut = CentreOut(), record=None) ->
         return jax.vmap(fns.test, in_axes=(None, None, None, 0))(key, trained, mp, targets)
 
     return CentreOutFns(train=train, test=test, fns=fns)
+
+
+def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
+    """Train one network per seed (key ``PRNGKey(seed)``) in one batch, test each, and each untrained network, on
+    every target; returns plain results: success per (network, target), counts per target (trained and naive), the
+    distribution of targets reached per network, median closest approach per target (cm), hand paths (m)."""
+    import numpy as np
+
+    from jaxarm.run import network_keys
+
+    fns = make_centre_out_train(config, task)
+    keys = network_keys(seeds)
+    trained, history = jax.jit(jax.vmap(fns.train, in_axes=(0, None)))(keys, mp)
+    test = jax.jit(jax.vmap(fns.test, in_axes=(0, 0, None)))
+    res = test(keys, trained, mp)
+    naive = test(keys, jax.jit(jax.vmap(lambda k: fns.fns.init(k).trained))(keys), mp)
+    n_t = len(task.targets)
+    out = {"targets": list(task.targets), "directions_deg": [round(d, 1) for d in task.directions_deg()],
+           "seeds": [int(s) for s in seeds],
+           "lost_spikes": int(np.asarray(history.lost_spikes).sum() + np.asarray(res.lost_spikes).sum())}
+    for name, r in (("trained", res), ("naive", naive)):
+        ok = np.asarray(r.success)                                                # (networks, targets)
+        out[name] = {"success": ok.astype(int).tolist(),
+                     "per_target": {t: int(ok[:, k].sum()) for k, t in enumerate(task.targets)},
+                     "targets_reached_per_network": np.bincount(ok.sum(axis=1), minlength=n_t + 1).tolist(),
+                     "median_min_distance_cm": {t: round(100 * float(np.median(np.asarray(r.min_distance_m)[:, k])), 2)
+                                                for k, t in enumerate(task.targets)},
+                     "hand_m": np.asarray(r.hand_m)}
+    return out
