@@ -237,7 +237,10 @@ class NetworkConfig:
         default = NetworkConfig()
         out = {}
         paper = default.spec
-        only_sizes = len(self.sizes) == len(paper.sizes) and self.spec == paper.with_sizes(self.sizes)
+        try:
+            only_sizes = len(self.sizes) == len(paper.sizes) and self.spec == paper.with_sizes(self.sizes)
+        except ConfigError:          # sizes the paper's populations cannot take: another network
+            only_sizes = False
         if not only_sizes:
             out.update(self.spec.to_dict())
         elif not (changed_only and self.sizes == paper.sizes):
