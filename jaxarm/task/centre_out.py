@@ -135,8 +135,20 @@ def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
     res = test(keys, trained, mp)
     naive = test(keys, jax.jit(jax.vmap(lambda k: fns.fns.init(k).trained))(keys), mp)
     n_t = len(task.targets)
+    spec = config.network.spec
+    hist = {"rates_last10s_hz": {p: np.asarray(history.rates_last10s_hz)[:, :, j].mean(axis=0).round(3).tolist()
+                                 for j, p in enumerate(spec.network_populations)},
+            "mean_wgain": {pw.name: np.asarray(history.mean_wgain)[:, :, j].mean(axis=0).round(4).tolist()
+                           for j, pw in enumerate(spec.pathways) if pw.plastic},
+            "rewards": np.asarray(history.rewards).mean(axis=0).round(1).tolist(),
+            "punishments": np.asarray(history.punishments).mean(axis=0).round(1).tolist(),
+            "min_distance_cm": (100 * np.asarray(history.min_distance_m).mean(axis=0)).round(2).tolist()}
     out = {"targets": list(task.targets), "directions_deg": [round(d, 1) for d in task.directions_deg()],
-           "seeds": [int(s) for s in seeds],
+           "seeds": [int(s) for s in seeds], "history_mean_over_networks_by_epoch": hist,
+           "test_rates_hz": {p: np.asarray(res.rates_hz)[..., j].mean().round(3).item()
+                             for j, p in enumerate(spec.network_populations)},
+           "naive_test_rates_hz": {p: np.asarray(naive.rates_hz)[..., j].mean().round(3).item()
+                                   for j, p in enumerate(spec.network_populations)},
            "lost_spikes": int(np.asarray(history.lost_spikes).sum() + np.asarray(res.lost_spikes).sum())}
     for name, r in (("trained", res), ("naive", naive)):
         ok = np.asarray(r.success)                                                # (networks, targets)
