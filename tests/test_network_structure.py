@@ -353,7 +353,7 @@ def test_train_with_a_network_file_equals_network_scale_and_test_rebuilds_it(tmp
     assert main([*common, "--network", str(tmp_path / "big.toml"), "--out", str(tmp_path / "file")]) == 0
     assert main([*common, "--network-scale", "2", "--out", str(tmp_path / "scale")]) == 0
     a, b = (json.loads((tmp_path / d / "results.json").read_text()) for d in ("file", "scale"))
-    assert a["networks"] == b["networks"] and a["config"]["loop"]["network"]["sizes"][0] == 384
+    assert a["networks"] == b["networks"] and a["config"]["loop"]["network"]["spec"]["populations"][0]["size"] == 384
     assert main(["test", "--from", str(tmp_path / "file"), "--test-s", "0.3"]) == 0
     again = json.loads((tmp_path / "file" / "test" / "results.json").read_text())
     assert again["networks"] == a["networks"]
