@@ -186,6 +186,7 @@ def test_an_extended_network_runs_alike_on_both_kernels():
     assert 1.0 < ex < 200.0, f"EX should fire at a cortical rate, got {ex:.1f} Hz"
 
 
+@pytest.mark.slow   # the default suite's 8-minute budget
 def test_an_extended_network_learns_on_its_new_synapses():
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
@@ -216,6 +217,7 @@ def _with_target_code(kernel: str, plastic: bool = True) -> NetworkConfig:
     return NetworkConfig(spec=spec, kernel=kernel)
 
 
+@pytest.mark.slow   # the default suite's 8-minute budget
 def test_a_target_code_fires_its_directions_train_and_nothing_else():
     """Direction 90 degrees is group 2 of 8: T cells 2 and 10 fire at 50 Hz (one interval, 20 ms, after the
     switch at step 0, then every 20 ms: 10 spikes in 200 ms), the 14 others never; P and the network as before."""
@@ -259,6 +261,7 @@ def test_a_target_code_runs_alike_on_both_kernels():
     assert np.asarray(out[0][1])[:, :, 704:].sum() == 2 * 2 * 12     # group 4 (180 deg): 2 cells x 12 spikes
 
 
+@pytest.mark.slow   # the default suite's 8-minute budget
 def test_a_plastic_target_code_learns_only_from_its_active_direction():
     """Training toward the left target (180 degrees from the start hand position: group 4 of 8): the T->EM synapses
     from group 4's cells are tagged and change under reward-modulated STDP; those from silent cells only move with

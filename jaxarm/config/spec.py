@@ -29,6 +29,7 @@ Units: mV, ms and Hz, as the names say.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import tomllib
@@ -303,48 +304,9 @@ class NetworkSpec:
     def dura_bernal_2015(cls) -> "NetworkSpec":
         """The network of Dura-Bernal et al. 2015 (the original's col.hoc at scale 4, spec §1-§2): populations in
         the original's global-id order, its pathway table (EM -> IS/ISL absent: EMISFeedBack = 0), its background
-        noise (stim.hoc setwmatex, EXGain 15 included) and INTF6 parameters (params.hoc L71-136)."""
-        inh = ((1.875, 100.0), (1.875, 100.0))
-        populations = (
-            Population("ES", 192, "E", _E_NOISE),
-            Population("IS", 44, "FS", ((4.125, 200.0),) + inh),
-            Population("ISL", 20, "LTS", ((3.0, 200.0),) + inh),
-            Population("EM", 192, "E", ((3.9375, 200.0),) + inh),
-            Population("IM", 44, "FS", ((4.125, 200.0),) + inh),
-            Population("IML", 20, "LTS", ((3.0, 200.0),) + inh),
-            Population("P", 192, GENERATOR, code="proprioceptive"),
-        )
-        pathways = (
-            Pathway("ES", "ES", 0.05, 1.98, _DISTAL, True),
-            Pathway("ES", "IS", 0.43, 1.15, _DISTAL, True),
-            Pathway("ES", "ISL", 0.51, 0.575, _DISTAL, True),
-            Pathway("ES", "EM", 0.30, 2.64, _DISTAL, True),
-            Pathway("EM", "EM", 0.05, 1.782, _DISTAL, True),
-            Pathway("EM", "IM", 0.43, 1.15, _DISTAL, True),
-            Pathway("EM", "IML", 0.51, 0.575, _DISTAL, True),
-            Pathway("EM", "ES", 0.01, 0.72, _DISTAL, True),
-            Pathway("ES", "IM", 0.05, 1.15, _DISTAL),
-            Pathway("ES", "IML", 0.05, 0.575, _DISTAL),
-            Pathway("IS", "ES", 0.44, 4.5, _SOMA),
-            Pathway("IS", "IS", 0.62, 4.5, _SOMA),
-            Pathway("IS", "ISL", 0.34, 4.5, _SOMA),
-            Pathway("ISL", "ES", 0.35, 1.245, _DISTAL),
-            Pathway("ISL", "IS", 0.53, 2.25, _DISTAL),
-            Pathway("ISL", "ISL", 0.09, 4.5, _DISTAL),
-            Pathway("IM", "EM", 0.44, 9.0, _SOMA),
-            Pathway("IM", "IM", 0.62, 4.5, _SOMA),
-            Pathway("IM", "IML", 0.34, 4.5, _SOMA),
-            Pathway("IML", "EM", 0.35, 2.49, _DISTAL),
-            Pathway("IML", "IM", 0.53, 2.25, _DISTAL),
-            Pathway("IML", "IML", 0.09, 4.5, _DISTAL),
-            Pathway("P", "ES", 0.1, 4.0, (1.0, 1.0)),
-        )
-        cell_types = (
-            CellType("E", -65.0, -40.0, -25.0, 5.0, 1.0, 400.0, 8.0, 0.75, "excitatory"),
-            CellType("FS", -63.0, -40.0, -10.0, 2.5, 0.5, 50.0, 1.5, 0.25, "inhibitory_proximal"),
-            CellType("LTS", -65.0, -47.0, -10.0, 2.5, 0.5, 50.0, 1.5, 0.25, "inhibitory_distal"),
-        )
-        return cls(populations, pathways, cell_types)
+        noise (stim.hoc setwmatex, EXGain 15 included) and INTF6 parameters (params.hoc L71-136). One shared
+        (immutable) object: every NetworkConfig() holds it without rebuilding and re-validating it."""
+        return _paper_spec(cls)
 
     # ----- lookups -----
     @property
@@ -482,6 +444,52 @@ class NetworkSpec:
         data = self.to_dict()
         path.write_text(to_toml(data, "jaxarm NetworkSpec") if path.suffix == ".toml"
                         else json.dumps(data, indent=1) + "\n")
+
+
+@functools.lru_cache(maxsize=None)
+def _paper_spec(cls) -> NetworkSpec:
+    """NetworkSpec.dura_bernal_2015(), built once."""
+    inh = ((1.875, 100.0), (1.875, 100.0))
+    populations = (
+        Population("ES", 192, "E", _E_NOISE),
+        Population("IS", 44, "FS", ((4.125, 200.0),) + inh),
+        Population("ISL", 20, "LTS", ((3.0, 200.0),) + inh),
+        Population("EM", 192, "E", ((3.9375, 200.0),) + inh),
+        Population("IM", 44, "FS", ((4.125, 200.0),) + inh),
+        Population("IML", 20, "LTS", ((3.0, 200.0),) + inh),
+        Population("P", 192, GENERATOR, code="proprioceptive"),
+    )
+    pathways = (
+        Pathway("ES", "ES", 0.05, 1.98, _DISTAL, True),
+        Pathway("ES", "IS", 0.43, 1.15, _DISTAL, True),
+        Pathway("ES", "ISL", 0.51, 0.575, _DISTAL, True),
+        Pathway("ES", "EM", 0.30, 2.64, _DISTAL, True),
+        Pathway("EM", "EM", 0.05, 1.782, _DISTAL, True),
+        Pathway("EM", "IM", 0.43, 1.15, _DISTAL, True),
+        Pathway("EM", "IML", 0.51, 0.575, _DISTAL, True),
+        Pathway("EM", "ES", 0.01, 0.72, _DISTAL, True),
+        Pathway("ES", "IM", 0.05, 1.15, _DISTAL),
+        Pathway("ES", "IML", 0.05, 0.575, _DISTAL),
+        Pathway("IS", "ES", 0.44, 4.5, _SOMA),
+        Pathway("IS", "IS", 0.62, 4.5, _SOMA),
+        Pathway("IS", "ISL", 0.34, 4.5, _SOMA),
+        Pathway("ISL", "ES", 0.35, 1.245, _DISTAL),
+        Pathway("ISL", "IS", 0.53, 2.25, _DISTAL),
+        Pathway("ISL", "ISL", 0.09, 4.5, _DISTAL),
+        Pathway("IM", "EM", 0.44, 9.0, _SOMA),
+        Pathway("IM", "IM", 0.62, 4.5, _SOMA),
+        Pathway("IM", "IML", 0.34, 4.5, _SOMA),
+        Pathway("IML", "EM", 0.35, 2.49, _DISTAL),
+        Pathway("IML", "IM", 0.53, 2.25, _DISTAL),
+        Pathway("IML", "IML", 0.09, 4.5, _DISTAL),
+        Pathway("P", "ES", 0.1, 4.0, (1.0, 1.0)),
+    )
+    cell_types = (
+        CellType("E", -65.0, -40.0, -25.0, 5.0, 1.0, 400.0, 8.0, 0.75, "excitatory"),
+        CellType("FS", -63.0, -40.0, -10.0, 2.5, 0.5, 50.0, 1.5, 0.25, "inhibitory_proximal"),
+        CellType("LTS", -65.0, -47.0, -10.0, 2.5, 0.5, 50.0, 1.5, 0.25, "inhibitory_distal"),
+    )
+    return cls(populations, pathways, cell_types)
 
 
 def _build(cls, row, what: str):
