@@ -72,6 +72,7 @@ def test_killed_train_resumes_bit_for_bit(tmp_path, env):
     same_results(tmp_path / "full", killed)
 
 
+@pytest.mark.slow   # 35 s: the default suite's budget; killed train and damaged-checkpoint resumes stay in it
 def test_killed_reproduce_resumes_bit_for_bit(tmp_path, env):
     args = ["reproduce", "--arm", "simple", "--preset", "simple-cmaes-left-local", "--targets", "left",
             "--networks", "2", "--top", "2", "--epochs", "4", "--epoch-s", "0.4", "--test-s", "0.2", "--no-progress"]

@@ -9,7 +9,7 @@ import pytest
 NOTEBOOKS = sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
 #: Run in the slow suite (each compiles a search, a robot pipeline or several networks: ~20-50 s; the default suite's 8-minute
 #: budget).
-SLOW = {"evolution.ipynb", "robot.ipynb", "gradients.ipynb", "network.ipynb"}
+SLOW = {"evolution.ipynb", "robot.ipynb", "gradients.ipynb", "network.ipynb", "quickstart.ipynb"}
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)

@@ -287,7 +287,7 @@ def test_set_changes_a_metaparameter_in_every_set(tmp_path, preset_dir, capsys):
     assert "dt_ms = 0.3" in capsys.readouterr().err
 
 
-
+@pytest.mark.slow   # 45 s: the default suite's 8-minute budget (CI runs the slow suite too)
 def test_musculoskeletal_reproduce_with_the_shipped_preset_then_retest(tmp_path):
     """The headline path at tiny size: the shipped musculoskeletal preset, both modes, one target, then `jaxarm
     test` re-tests the trained networks identically."""
