@@ -166,21 +166,28 @@ def test_an_added_population_and_pathway_are_wired_as_the_spec_says():
     assert layout.synapses("ES->EX").stop == layout.n_plastic
 
 
-@needs_native
-@pytest.mark.slow
-def test_an_extended_network_runs_alike_on_both_kernels():
-    """Like tests/test_native_kernel.py for the paper's network: the same spikes over 250 ms from rest."""
-    nets = [Network(_extended(k)) for k in ("xla", "native")]
+def _run_on_both_kernels(config_of, direction_rad=None):
+    """Two networks of ``config_of(kernel)`` from rest, 250 ms on the XLA and the native kernel (the same wiring,
+    noise and muscle lengths; target codes pointed at ``direction_rad``): [(states, spikes) xla, (...) native]."""
+    nets = [Network(config_of(k)) for k in ("xla", "native")]
     keys = jax.random.split(jax.random.key(3), 2)
     wirings = jax.vmap(nets[0].make_wiring)(keys)
 
     def start(net, key):
         s = net.set_em_rates(net.init(key), jnp.asarray((152.76, 50.0, 50.0, 50.0), jnp.float32))
+        s = s if direction_rad is None else net.set_target(s, direction_rad)
         return net.set_lengths(s, jnp.array([0.10, 0.16, 0.12, 0.14]))
 
     s0 = jax.vmap(lambda k: start(nets[0], k))(jax.random.split(jax.random.key(4), 2))
-    spikes = [np.asarray(jax.jit(jax.vmap(lambda w, s, net=net: net.run(w, s, NetworkParams.original(), 1000)[1]))(
-        wirings, s0)) for net in nets]
+    return [jax.jit(jax.vmap(lambda w, s, net=net: net.run(w, s, NetworkParams.original(), 1000)))(wirings, s0)
+            for net in nets]
+
+
+@needs_native
+@pytest.mark.slow
+def test_an_extended_network_runs_alike_on_both_kernels():
+    """Like tests/test_native_kernel.py for the paper's network: the same spikes over 250 ms from rest."""
+    spikes = [np.asarray(out[1]) for out in _run_on_both_kernels(_extended)]
     np.testing.assert_array_equal(spikes[0], spikes[1])
     ex = spikes[0][:, :, 512:544].sum() / (2 * 32 * 0.25)
     assert 1.0 < ex < 200.0, f"EX should fire at a cortical rate, got {ex:.1f} Hz"
@@ -245,17 +252,7 @@ def test_a_target_code_fires_its_directions_train_and_nothing_else():
 @needs_native
 @pytest.mark.slow
 def test_a_target_code_runs_alike_on_both_kernels():
-    nets = [Network(_with_target_code(k)) for k in ("xla", "native")]
-    keys = jax.random.split(jax.random.key(3), 2)
-    wirings = jax.vmap(nets[0].make_wiring)(keys)
-
-    def start(net, key):
-        s = net.set_em_rates(net.init(key), jnp.asarray((152.76, 50.0, 50.0, 50.0), jnp.float32))
-        return net.set_lengths(net.set_target(s, np.pi), jnp.array([0.10, 0.16, 0.12, 0.14]))
-
-    s0 = jax.vmap(lambda k: start(nets[0], k))(jax.random.split(jax.random.key(4), 2))
-    out = [jax.jit(jax.vmap(lambda w, s, net=net: net.run(w, s, NetworkParams.original(), 1000)))(wirings, s0)
-           for net in nets]
+    out = _run_on_both_kernels(_with_target_code, np.pi)
     np.testing.assert_array_equal(np.asarray(out[0][1]), np.asarray(out[1][1]))
     np.testing.assert_array_equal(np.asarray(out[0][0].pdope_ms), np.asarray(out[1][0].pdope_ms))
     assert np.asarray(out[0][1])[:, :, 704:].sum() == 2 * 2 * 12     # group 4 (180 deg): 2 cells x 12 spikes

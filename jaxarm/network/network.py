@@ -148,6 +148,11 @@ class Network:
         return self.layout.generator_synapses
 
     @cached_property
+    def p_synapse_ids(self) -> np.ndarray:
+        """:attr:`p_synapses` as an (n,) int32 id table (what the native kernel takes)."""
+        return np.arange(self.layout.n_syn, dtype=np.int32)[self.p_synapses]
+
+    @cached_property
     def native_cell_floats(self) -> np.ndarray:
         """(12, n_cells) float32 cell constants in the native kernel's order."""
         c = self.cell_constants

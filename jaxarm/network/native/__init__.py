@@ -138,13 +138,6 @@ def status() -> str:
 ALIASES = {0: 0, 1: 1, 2: 2, 3: 3, 4: 4, 5: 5, 6: 6, 7: 7, 8: 8, 13: 9, 15: 10, 16: 11, 17: 12, 18: 13, 30: 14}
 
 
-@functools.lru_cache(maxsize=None)
-def _generator_synapse_ids(net: "Network") -> np.ndarray:
-    """(n_generator_synapses,) int32 ids of the synapses the kernel delivers from generator trains."""
-    ps = net.p_synapses
-    return np.arange(ps.start, ps.stop, dtype=np.int32) if isinstance(ps, slice) else np.asarray(ps, np.int32)
-
-
 def _as(x, dtype):
     return jnp.asarray(x).astype(dtype)
 
@@ -175,7 +168,7 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
         _as(wiring.target[ps], jnp.int32), _as(wiring.weight[ps], jnp.float32), _as(wiring.nmda[ps], jnp.float32),
         jnp.asarray(net.native_cell_floats), jnp.asarray(net.cell_constants.n_refractory, jnp.int32),
         jnp.asarray(net.noise_weights), jnp.asarray(net.native_cell_group), jnp.asarray(net.native_cell_row),
-        _as(s.noise.events_left, jnp.int32), jnp.asarray(_generator_synapse_ids(net)), *groups,
+        _as(s.noise.events_left, jnp.int32), jnp.asarray(net.p_synapse_ids), *groups,
     ]
     n, n_all = c.n_cells, c.n_all
     f32, i32 = jnp.float32, jnp.int32
