@@ -8,42 +8,18 @@ the paper's network without the target code, trained and tested the same way.
 Every condition trains ``--networks`` networks (seeds SEED .. SEED + n - 1) in one batch (the native kernel's
 threads over every core), epoch e toward target e % 8 (``jaxarm.task.centre_out``), then tests each network on
 all eight targets (1 s, no learning), and each untrained network the same way (naive). Prints the success count
-per target and the distribution of targets reached per network, and writes OUT/centre_out.json.
+per target and the distribution of targets reached per network, and writes OUT/centre_out.json after each
+condition (a rerun skips the finished ones). The same as ``jaxarm reproduce --task centre-out-8``, with the target
+code's options and ``--plastic`` to choose which pathways learn.
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import subprocess
-import time
 from datetime import datetime, timezone
 from pathlib import Path
-
-import numpy as np
-
-
-def run_condition(name, args, mp):
-    from jaxarm.config.network import NetworkConfig
-    from jaxarm.config.spec import NetworkSpec
-    from jaxarm.loop import LoopConfig
-    from jaxarm.task.centre_out import CentreOut, train_and_test, with_target_code
-
-    task = CentreOut(epochs_per_target=args.epochs_per_target, epoch_duration_s=args.epoch_s)
-    spec = NetworkSpec.dura_bernal_2015()
-    if name == "target-code":
-        spec = with_target_code(spec, task, cells_per_target=args.cells_per_target, rate_hz=args.code_rate_hz,
-                                posts=tuple(args.code_posts.split(",")), pmat=args.code_pmat,
-                                weight_mv=args.code_weight_mv)
-    net = NetworkConfig(spec=spec, native_threads=os.cpu_count() or 1)
-    t0 = time.perf_counter()
-    r = train_and_test(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task,
-                       range(args.seed, args.seed + args.networks), mp)
-    for k in ("trained", "naive"):
-        r[k].pop("hand_m")
-    return {"condition": name, **r, "network_seconds": args.networks * task.task_config().epochs * args.epoch_s,
-            "wall_s": round(time.perf_counter() - t0, 1)}
 
 
 def main(argv=None) -> int:
@@ -60,35 +36,34 @@ def main(argv=None) -> int:
     ap.add_argument("--code-posts", default="EM", help="populations the target code projects to (comma-separated)")
     ap.add_argument("--code-pmat", type=float, default=0.2)
     ap.add_argument("--code-weight-mv", type=float, default=2.0)
+    ap.add_argument("--plastic", default=None,
+                    help="the target-code network's only plastic pathways, comma-separated (e.g. T->EM; default: "
+                         "the paper's plastic pathways and the code's)")
     ap.add_argument("--out", type=Path, default=Path("runs/centre-out"))
     args = ap.parse_args(argv)
 
+    from jaxarm.config.network import NetworkConfig
     from jaxarm.learning.metaparams import MetaParams
+    from jaxarm.loop import LoopConfig
     from jaxarm.paper import presets
+    from jaxarm.task.centre_out import CentreOut, run_with_control, table_markdown
 
     mp = MetaParams.from_dict(presets.load(args.preset).best) if args.preset != "original" else MetaParams.original()
-    args.out.mkdir(parents=True, exist_ok=True)
-    out = {"command": "python experiments/centre_out.py " + " ".join(argv or __import__("sys").argv[1:]),
-           "date": datetime.now(timezone.utc).strftime("%Y-%m-%d"), "machine": f"{platform.machine()}, "
-           f"{os.cpu_count()} cores", "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"],
-                                                               capture_output=True, text=True).stdout.strip(),
-           "config": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}, "conditions": {}}
-    for name in args.conditions.split(","):
-        r = run_condition(name, args, mp)
-        out["conditions"][name] = r
-        (args.out / "centre_out.json").write_text(json.dumps(out, indent=1))
-        print(f"{name}: trained and tested in {r['wall_s']} s ({r['network_seconds']:g} network-s); lost spikes "
-              f"{r['lost_spikes']}")
-    conds = list(out["conditions"].values())
-    print(f"\n| target (direction) | " + " | ".join(f"{c['condition']}: trained (naive)" for c in conds) + " |")
-    print("|---|" + "---|" * len(conds))
-    for k, t in enumerate(conds[0]["targets"]):
-        cells = [f"{c['trained']['per_target'][t]}/{args.networks} ({c['naive']['per_target'][t]}/{args.networks})"
-                 for c in conds]
-        print(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
-    for c in conds:
-        print(f"{c['condition']}: networks by number of targets reached (0..8): "
-              f"{c['trained']['targets_reached_per_network']} (naive {c['naive']['targets_reached_per_network']})")
+
+    task = CentreOut(epochs_per_target=args.epochs_per_target, epoch_duration_s=args.epoch_s)
+    meta = {"command": "python experiments/centre_out.py " + " ".join(argv or __import__("sys").argv[1:]),
+            "date": datetime.now(timezone.utc).strftime("%Y-%m-%d"), "machine": f"{platform.machine()}, "
+            f"{os.cpu_count()} cores", "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"],
+                                                                capture_output=True, text=True).stdout.strip(),
+            "config": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}}
+    code = dict(cells_per_target=args.cells_per_target, rate_hz=args.code_rate_hz,
+                posts=tuple(args.code_posts.split(",")), pmat=args.code_pmat, weight_mv=args.code_weight_mv)
+    config = LoopConfig(arm=args.arm, network=NetworkConfig(native_threads=os.cpu_count() or 1),
+                        task=task.task_config())
+    result = run_with_control(config, task, range(args.seed, args.seed + args.networks), mp, args.out,
+                              conditions=tuple(args.conditions.split(",")), code=code,
+                              plastic=None if args.plastic is None else tuple(args.plastic.split(",")), meta=meta)
+    print(table_markdown(result))
     print("->", args.out / "centre_out.json")
     return 0
 

@@ -90,3 +90,78 @@ def test_the_command_line_trains_and_tests_the_eight_targets(tmp_path):
     assert hand.shape == (2, 8, 21, 2)
     with pytest.raises(SystemExit):
         main(["train", "--task", "centre-out-8", "--learning", "gradient", "--out", str(tmp_path / "g")])
+
+
+@pytest.mark.slow   # two conditions compiled
+def test_reproduce_runs_the_task_with_its_control_and_resumes(tmp_path, capsys):
+    """``jaxarm reproduce --task centre-out-8``: both conditions, the control without the target code; the table's
+    counts are the per-network successes summed; a rerun finds both conditions done and trains nothing."""
+    import json
+
+    from jaxarm.cli import main
+
+    out = tmp_path / "co"
+    argv = ["reproduce", "--task", "centre-out-8", "--arm", "simple", "--networks", "2", "--epochs", "1",
+            "--epoch-s", "0.2", "--test-s", "0.2", "--out", str(out)]
+    assert main(argv) == 0
+    r = json.loads((out / "centre_out.json").read_text())
+    assert set(r["conditions"]) == {"target-code", "control"}
+    co, ctl = r["conditions"]["target-code"], r["conditions"]["control"]
+    assert co["populations"][-2:] == ["P", "T"] and ctl["populations"][-1] == "P" and "T" not in ctl["populations"]
+    table = (out / "centre_out.md").read_text()
+    for k, t in enumerate(CENTRE_OUT_8):
+        n = sum(row[k] for row in co["trained"]["success"])
+        assert f"| {t} ({co['directions_deg'][k]:g} deg) | {n}/2 " in table
+    capsys.readouterr()
+    assert main(argv) == 0
+    said = capsys.readouterr().out
+    assert "target-code: already in" in said and "control: already in" in said
+    assert main(["reproduce", "--task", "centre-out-8", "--arm", "simple", "--targets", "left", "--out",
+                 str(out)]) == 2
+
+
+def test_the_centre_out_search_protocol_and_the_command_line_task():
+    """``jaxarm evolve --task centre-out-8``: the eight targets and the centre-out fitness unless given; a reaching
+    fitness with the task is refused; the protocol splits ``--train-s`` into epochs per target (by hand)."""
+    import argparse
+
+    from jaxarm.evolve.cli import _apply_task
+    from jaxarm.evolve.reaching import _centre_out_task
+
+    a = argparse.Namespace(task="centre-out-8", targets=None, fitness=None)
+    _apply_task(a)
+    assert (a.targets.split(","), a.fitness) == (list(CENTRE_OUT_8), "centre-out")
+    a = argparse.Namespace(task="reaching", targets=None, fitness=None)
+    _apply_task(a)
+    assert (a.targets, a.fitness) == ("left,bottom", "reaching")
+    with pytest.raises(ConfigError, match="--fitness reaching does not score --task centre-out-8"):
+        _apply_task(argparse.Namespace(task="centre-out-8", targets=None, fitness="reaching"))
+    t = _centre_out_task(CENTRE_OUT_8, 720.0)                  # 720 s / 8 targets = 3 epochs of 30 s each
+    assert (t.epochs_per_target, t.epoch_duration_s) == (3, 30.0)
+    t = _centre_out_task(CENTRE_OUT_8, 120.0)                  # under 30 s per target: one shorter epoch each
+    assert (t.epochs_per_target, t.epoch_duration_s) == (1, 15.0)
+
+
+@pytest.mark.slow   # compiles a centre-out training and test
+def test_the_centre_out_fitness_is_the_mean_shortfall_of_one_trained_network():
+    """The fitness equals the 2 cm shortfall, computed here with numpy from the test's distance traces of the same
+    network trained with the task's functions, averaged over the targets; its success rate is the fraction entered."""
+    from jaxarm.evolve import fitness
+    from jaxarm.evolve.reaching import _centre_out_task
+
+    targets = ("right", "top", "left", "bottom")
+    f = fitness.build("centre-out", fitness.FitnessOptions(arm="simple", targets=targets, train_s=0.8))
+    mp = MetaParams.original()
+    key = jax.random.PRNGKey(5)
+    value, metrics = jax.jit(f.fn)(key, mp)
+    task = _centre_out_task(targets, 0.8)
+    spec = with_target_code(NetworkSpec.dura_bernal_2015(), task)
+    fns = make_centre_out_train(LoopConfig(arm="simple", network=NetworkConfig(spec=spec), task=task.task_config()),
+                                task)
+    k_train, k_test = jax.random.split(key)
+    res = jax.jit(lambda: fns.test(k_test, fns.train(k_train, mp)[0], mp))()
+    closest = np.asarray(res.distance_m).min(axis=1)
+    assert closest.shape == (4,)
+    assert float(value) == pytest.approx(np.maximum(closest - 0.02, 0.0).mean(), abs=1e-6)
+    assert float(metrics["success_rate"]) == pytest.approx((closest <= 0.04).mean())
+    assert f.network_seconds_per_eval == pytest.approx(0.8 + 4 * 1.0)

@@ -393,6 +393,18 @@ class NetworkSpec:
             i = next((k for k, p in enumerate(pws) if not p.plastic and p.pre in self.generators), len(pws))
         return dataclasses.replace(self, pathways=tuple(pws[:i] + [pathway] + pws[i:]))
 
+    def with_plastic(self, names) -> "NetworkSpec":
+        """This spec with exactly the pathways ``names`` (e.g. ``"T->EM"``) plastic and the others fixed, reordered
+        by the ordering rules (plastic first, the fixed ones from generators last)."""
+        names = set(names)
+        unknown = names - {pw.name for pw in self.pathways}
+        if unknown:
+            raise ConfigError(f"plastic pathways: no pathway {sorted(unknown)[0]!r}; known: "
+                              f"{', '.join(pw.name for pw in self.pathways)}")
+        pws = [dataclasses.replace(pw, plastic=pw.name in names) for pw in self.pathways]
+        rank = [0 if pw.plastic else 2 if pw.pre in self.generators else 1 for pw in pws]
+        return dataclasses.replace(self, pathways=tuple(pw for _, pw in sorted(zip(rank, pws), key=lambda x: x[0])))
+
     # ----- as data -----
     def to_dict(self) -> dict:
         """Plain JSON/TOML values (tuples as lists)."""

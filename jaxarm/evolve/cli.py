@@ -5,6 +5,7 @@ Examples::
     jaxarm evolve --fitness quadratic --generations 100 --population 16 --out runs/evolve-bench
     jaxarm evolve --arm musculoskeletal --targets left,bottom --strategy CMA_ES --population 32 \\
         --seeds-per-candidate 2 --generations 100 --train-s 60 --out runs/evolve-msarm
+    jaxarm evolve --task centre-out-8 --arm simple --population 16 --train-s 240 --out runs/evolve-centre-out
     jaxarm evolve --list-fitness
     jaxarm evolve --list-strategies
 
@@ -21,6 +22,8 @@ from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
 
 DEFAULT_FITNESS = "reaching"
+#: --task: the targets and the fitness it implies (either can still be given)
+TASKS = {"reaching": (("left", "bottom"), DEFAULT_FITNESS), "centre-out-8": (None, "centre-out")}
 
 
 def _pairs(text: str, what: str) -> dict:
@@ -42,10 +45,14 @@ def build_parser() -> argparse.ArgumentParser:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, help="output folder (checkpoints, history.json, top_k.json, convergence.png);"
                                              " resumed when it holds a checkpoint")
-    ap.add_argument("--fitness", default=DEFAULT_FITNESS,
-                    help=f"registered fitness (default {DEFAULT_FITNESS!r}; see --list-fitness)")
+    ap.add_argument("--task", choices=tuple(TASKS), default="reaching",
+                    help="reaching (default): one network per target, the paper's search; centre-out-8: one network "
+                         "trained on the original's eight centre-out targets in turn, with a target code "
+                         "(jaxarm.task.centre_out), fitness centre-out")
+    ap.add_argument("--fitness", default=None,
+                    help=f"registered fitness (default {DEFAULT_FITNESS!r}, or the --task's; see --list-fitness)")
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="musculoskeletal", help="arm")
-    ap.add_argument("--targets", default="left,bottom", help="comma-separated targets (default left,bottom)")
+    ap.add_argument("--targets", default=None, help="comma-separated targets (default left,bottom, or the --task's)")
     ap.add_argument("--train-s", type=float, default=None,
                     help="simulated training length per evaluation, s (default: the candidate's epochs x 30 s)")
     ap.add_argument("--dt-ms", type=float, default=None,
@@ -122,6 +129,7 @@ def evolve_main(argv: list[str] | None = None) -> int:
             if missing:
                 raise ConfigError(f"--{what}: {missing[0]!r} needs a value (name=value)")
         network = _network(args)
+        _apply_task(args)
         options = fitness_registry.FitnessOptions(
             arm=args.arm, targets=tuple(t.strip() for t in args.targets.split(",") if t.strip()),
             train_s=args.train_s, dt_ms=args.dt_ms, network=network)
@@ -179,6 +187,21 @@ def evolve_main(argv: list[str] | None = None) -> int:
         print(f"jaxarm evolve: {e}", file=sys.stderr)
         return 2
     return 0 if result.finished or args.max_chunks is not None else 1
+
+
+def _apply_task(args) -> None:
+    """Fill ``--targets`` and ``--fitness`` from ``--task`` where they were not given; a reaching fitness with
+    ``--task centre-out-8`` is an error, as it would not search the task asked for."""
+    from jaxarm.task.centre_out import CENTRE_OUT_8
+
+    targets, fitness = TASKS[args.task]
+    if args.targets is None:
+        args.targets = ",".join(targets or CENTRE_OUT_8)
+    if args.fitness is None:
+        args.fitness = fitness
+    if args.task == "centre-out-8" and not args.fitness.startswith("centre-out"):
+        raise ConfigError(f"--fitness {args.fitness} does not score --task {args.task}: use the task's fitness "
+                          f"({fitness!r}) or leave --fitness out")
 
 
 def _network(args):

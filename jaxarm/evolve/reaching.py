@@ -19,6 +19,12 @@ worst target instead of the mean, for an arm whose targets pull the metaparamete
 target for the other scores no better than its weaker target). ``reaching-stay`` adds to the 2 cm shortfall how far
 the hand strays outside the success circle after first entering it, so a search prefers controllers that stay.
 
+``centre-out`` scores one network trained on several targets at once (:mod:`jaxarm.task.centre_out`: the targets
+alternate epoch by epoch and a target code tells the network which one is current; ``--task centre-out-8`` gives
+the original's eight): the mean over targets of the 2 cm shortfall, every target tested on the same trained network.
+The network gets the default target code (:func:`~jaxarm.task.centre_out.with_target_code`) unless its spec
+already has one. ``success_rate`` is then the fraction of targets entered.
+
 The training length per evaluation is static (it sets the compiled loop's length): ``train_s`` seconds, run as
 ``round(train_s / 30)`` epochs of 30 s (or one shorter epoch when ``train_s < 30``), so the ``epochs``
 metaparameter is ignored (the CLI freezes it).
@@ -111,6 +117,47 @@ def make_reaching(options: fitness.FitnessOptions, per_target=_authors_distance,
                            ignores=("epochs",), implied=(("epochs", float(epochs)),))
 
 
+def _centre_out_task(targets, train_s: float):
+    """The CentreOut protocol of ``train_s`` seconds in all: ``round(train_s / (30 x n))`` epochs of 30 s per target
+    (at least one, shorter when ``train_s < 30 x n``)."""
+    from jaxarm.task.centre_out import CentreOut
+
+    n = len(targets)
+    per_target = max(1, round(train_s / (EPOCH_S * n)))
+    return CentreOut(targets=tuple(targets), epochs_per_target=per_target,
+                     epoch_duration_s=min(EPOCH_S, train_s / (per_target * n)))
+
+
+def make_centre_out(options: fitness.FitnessOptions, margin_m: float = 0.02) -> fitness.Fitness:
+    """Train one network on all ``options.targets`` (alternating, with a target code), test it on each; the mean
+    over targets of how far the closest approach stays outside the circle ``margin_m`` inside the success circle."""
+    import dataclasses
+
+    from jaxarm.task.centre_out import make_centre_out_train, with_target_code
+
+    train_s = 8 * 3 * EPOCH_S if options.train_s is None else float(options.train_s)
+    task = _centre_out_task(options.targets, train_s)
+    network = options.network_config()
+    if not any(p.code == "target" for p in network.spec.populations):
+        network = dataclasses.replace(network, spec=with_target_code(network.spec, task))
+    fns = make_centre_out_train(LoopConfig(arm=options.arm, network=network, task=task.task_config()), task)
+    radius_m = task.success_radius_m
+
+    def fn(key, mp):
+        k_train, k_test = jax.random.split(key)
+        trained, history = fns.train(k_train, mp)
+        result = fns.test(k_test, trained, mp)                       # leading target axis
+        short = jax.vmap(lambda d: _shortfall(d, radius_m, margin_m))(result.distance_m)
+        lost = jnp.sum(history.lost_spikes) + jnp.sum(result.lost_spikes) + trained.wiring.out_overflow
+        value = jnp.where(lost > 0, jnp.nan, jnp.mean(short))
+        return value, {"success_rate": jnp.mean(result.success.astype(jnp.float32))}
+
+    cfg = task.task_config()
+    return fitness.Fitness(fn, network_seconds_per_eval=cfg.epochs * cfg.epoch_duration_s
+                           + len(task.targets) * cfg.test_duration_s,
+                           ignores=("epochs",), implied=(("epochs", float(cfg.epochs)),))
+
+
 fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (spec §7)")
 fitness.register("reaching-closest", lambda options: make_reaching(options, _closest_distance),
                  "worst target's closest approach in the test, m (the paper's success criterion, not its fitness)")
@@ -126,3 +173,7 @@ fitness.register("reaching-shortfall-worst", lambda options: make_reaching(optio
 fitness.register("reaching-stay", lambda options: make_reaching(options, _reach_and_stay, jnp.mean),
                  "mean over targets of reaching-shortfall-2cm plus the mean distance outside the success circle "
                  "after first entering it, m (0 = every target entered within 2 cm and never left the circle)")
+fitness.register("centre-out", make_centre_out,
+                 "one network trained on all --targets in turn (a target code says which is current; --task "
+                 "centre-out-8), tested on each: mean over targets of how far the closest approach stays outside the "
+                 "2 cm circle, m")

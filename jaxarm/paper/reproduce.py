@@ -433,6 +433,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="jaxarm reproduce", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), help="arm (required for a reproduction)")
+    ap.add_argument("--task", choices=("reaching", "centre-out-8"), default="reaching",
+                    help="reaching (default): the paper's two-target statistics; centre-out-8: one network per seed "
+                         "trained on the original's eight centre-out targets in turn with a target code, and the "
+                         "control without it, tested on every target (--epochs per target, default 3; "
+                         "docs/centre-out.md)")
     ap.add_argument("--preset", help="preset name (see --list-presets) or the path of a preset .json file "
                                      "(default: the arm's protocol of the README's headline numbers, which it prints)")
     ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
@@ -495,6 +500,8 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         if missing:
             ap.error(f"{', '.join(missing)} required (or --list-presets / --make-preset)")
         preset = None if args.preset is None else preset_lib.load(args.preset, args.preset_dir)
+        if args.task == "centre-out-8":
+            return _reproduce_centre_out(args, preset, argv)
         targets = None if args.targets is None else [t.strip() for t in args.targets.split(",") if t.strip()]
         from jaxarm.experiment import _parse_overrides
         from jaxarm.run import network_config as network_config_of
@@ -510,6 +517,45 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         print(f"jaxarm reproduce: {e}", file=sys.stderr)
         return 2
     return 0 if table is not None else 1
+
+
+def _reproduce_centre_out(args, preset, argv) -> int:
+    """``jaxarm reproduce --task centre-out-8``: :func:`jaxarm.task.centre_out.run_with_control` with the preset's
+    best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; one process,
+    every core as the native kernel's threads; a rerun skips the finished condition."""
+    import platform
+    from datetime import datetime, timezone
+
+    from jaxarm.experiment import _parse_overrides
+    from jaxarm.learning.metaparams import MetaParams
+    from jaxarm.loop import LoopConfig
+    from jaxarm.run import network_config as network_config_of
+    from jaxarm.task.centre_out import CentreOut, run_with_control, table_markdown
+
+    if args.targets is not None or args.top != preset_lib.MAX_TOP or args.backend != "fast":
+        raise ConfigError("--task centre-out-8 takes the eight targets, the preset's best set only and the fast "
+                          "backend (no --targets, --top, --backend)")
+    if args.coordinator or args.num_processes:
+        raise ConfigError("--task centre-out-8 runs in one process (no --coordinator yet)")
+    task = CentreOut(epochs_per_target=3 if args.epochs is None else args.epochs, epoch_duration_s=args.epoch_s,
+                     test_duration_s=args.test_s)
+    net = network_config_of(args)
+    net = dataclasses.replace(net, native_threads=args.devices or parallel.usable_cores(),
+                              **({} if args.dt_ms is None else {"dt_ms": args.dt_ms}))
+    mp = MetaParams.from_dict({**(preset.best if preset is not None else {}), **_parse_overrides(args.overrides)})
+    print(f"{args.arm} arm, eight centre-out targets: {args.networks} networks per condition (target code, "
+          f"control), {task.epochs_per_target} x {task.epoch_duration_s:g} s per target, cycled "
+          f"({task.task_config().epochs} epochs), metaparameters "
+          f"{'of preset ' + preset.name if preset is not None else 'of the authors'} -> {args.out}")
+    meta = {"command": shlex.join(["jaxarm", "reproduce", *argv]),
+            "date": datetime.now(timezone.utc).strftime("%Y-%m-%d"),
+            "machine": f"{platform.machine()}, {parallel.usable_cores()} cores"}
+    result = run_with_control(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task,
+                              range(args.seed, args.seed + args.networks), mp, args.out, meta=meta)
+    table = table_markdown(result)
+    (args.out / "centre_out.md").write_text(table + "\n")
+    print(table)
+    return 0
 
 
 if __name__ == "__main__":

@@ -159,3 +159,75 @@ def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
                                                 for k, t in enumerate(task.targets)},
                      "hand_m": np.asarray(r.hand_m)}
     return out
+
+
+#: The two conditions of the centre-out comparison: the network with a target code, and without (the control)
+CONDITIONS = ("target-code", "control")
+
+
+def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=CONDITIONS, code: dict | None = None,
+                     plastic=None, meta: dict | None = None, log=print) -> dict:
+    """Train and test one network per seed on every target of ``task`` under each condition: ``target-code``
+    (``config``'s network with ``with_target_code(spec, task, **code)`` unless it has one) and ``control`` (the
+    network without any target code). ``plastic``: names of the only plastic pathways of the target-code network
+    (e.g. ``("T->EM",)``; default: as built). Results go to ``out/centre_out.json`` after each condition; a rerun
+    with the same description skips the conditions already there. Returns that file's content."""
+    import dataclasses
+    import json
+    import time
+    from pathlib import Path
+
+    out = Path(out)
+    base = config.network.spec
+    for name in base.target_codes:        # the control: the network without its target code(s) and their pathways
+        base = dataclasses.replace(base, populations=tuple(p for p in base.populations if p.name != name),
+                                   pathways=tuple(pw for pw in base.pathways if name not in (pw.pre, pw.post)))
+    coded = config.network.spec if config.network.spec.target_codes else with_target_code(base, task, **(code or {}))
+    if plastic is not None:
+        coded = coded.with_plastic(plastic)
+    specs = {"target-code": coded, "control": base}
+    unknown = [c for c in conditions if c not in specs]
+    if unknown:
+        raise ConfigError(f"conditions: {unknown[0]!r} is not one of {', '.join(CONDITIONS)}")
+    description = {"arm": config.arm, "task": dataclasses.asdict(task), "seeds": [int(s) for s in seeds],
+                   "metaparams": mp.to_dict(), "code": code or {}, "plastic": None if plastic is None else
+                   sorted(plastic), "dt_ms": config.network.dt_ms}
+    path = out / "centre_out.json"
+    done = json.loads(path.read_text()) if path.exists() else {}
+    if done.get("description") != json.loads(json.dumps(description)):
+        done = {}
+    result = {**(meta or {}), "description": description, "conditions": done.get("conditions", {})}
+    out.mkdir(parents=True, exist_ok=True)
+    for name in conditions:
+        if name in result["conditions"]:
+            log(f"{name}: already in {path}")
+            continue
+        t0 = time.perf_counter()
+        cfg = dataclasses.replace(config, network=dataclasses.replace(config.network, spec=specs[name]))
+        r = train_and_test(cfg, task, seeds, mp)
+        for k in ("trained", "naive"):
+            r[k].pop("hand_m")
+        r.update(condition=name, populations=list(specs[name].names), network_seconds=len(r["seeds"]) * task.task_config().epochs * task.epoch_duration_s,
+                 wall_s=round(time.perf_counter() - t0, 1))
+        result["conditions"][name] = r
+        path.write_text(json.dumps(result, indent=1))
+        log(f"{name}: trained and tested in {r['wall_s']} s ({r['network_seconds']:g} network-s); lost spikes "
+            f"{r['lost_spikes']}")
+    return result
+
+
+def table_markdown(result: dict) -> str:
+    """The per-target table of :func:`run_with_control`'s result: trained (naive) counts per condition, then the
+    networks by number of targets reached."""
+    conds = list(result["conditions"].values())
+    n = len(conds[0]["seeds"])
+    lines = ["| target (direction) | " + " | ".join(f"{c['condition']}: trained (naive)" for c in conds) + " |",
+             "|---|" + "---|" * len(conds)]
+    for k, t in enumerate(conds[0]["targets"]):
+        cells = [f"{c['trained']['per_target'][t]}/{n} ({c['naive']['per_target'][t]}/{n})" for c in conds]
+        lines.append(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
+    for c in conds:
+        lines.append(f"\n{c['condition']}: networks by number of targets reached (0..{len(c['targets'])}): "
+                     f"{c['trained']['targets_reached_per_network']} (naive "
+                     f"{c['naive']['targets_reached_per_network']})")
+    return "\n".join(lines)
