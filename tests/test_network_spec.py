@@ -166,6 +166,20 @@ def test_an_added_population_and_pathway_are_wired_as_the_spec_says():
     assert layout.synapses("ES->EX").stop == layout.n_plastic
 
 
+def test_with_plastic_makes_exactly_the_named_pathways_plastic_and_orders_them():
+    """Only ES->EM plastic: its synapses become the layout's plastic block (ES->EM's in-degree by hand, pmat 0.5 x
+    1.125 x 192 rounded), the seven others fixed; unknown names are one-line errors."""
+    spec = NetworkSpec.dura_bernal_2015().with_plastic({"ES->EM"})
+    assert [pw.name for pw in spec.pathways if pw.plastic] == ["ES->EM"]
+    assert spec.pathways[0].name == "ES->EM" and spec.pathways[-1].name == "P->ES"
+    assert sorted(pw.name for pw in spec.pathways) == sorted(pw.name for pw in NetworkSpec.dura_bernal_2015().pathways)
+    layout = WiringLayout(NetworkConfig(spec=spec))
+    assert layout.synapses("ES->EM") == slice(0, layout.n_plastic)
+    assert layout.n_plastic == 192 * int(0.5 + spec.pathway("ES->EM").pmat * 1.125 * 192)
+    with pytest.raises(ConfigError, match="plastic pathways: no pathway 'EM->XX'"):
+        spec.with_plastic({"EM->XX"})
+
+
 def _run_on_both_kernels(config_of, direction_rad=None):
     """Two networks of ``config_of(kernel)`` from rest, 250 ms on the XLA and the native kernel (the same wiring,
     noise and muscle lengths; target codes pointed at ``direction_rad``): [(states, spikes) xla, (...) native]."""
