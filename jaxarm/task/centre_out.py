@@ -169,9 +169,11 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
                      plastic=None, meta: dict | None = None, log=print) -> dict:
     """Train and test one network per seed on every target of ``task`` under each condition: ``target-code``
     (``config``'s network with ``with_target_code(spec, task, **code)`` unless it has one) and ``control`` (the
-    network without any target code). ``plastic``: names of the only plastic pathways of the target-code network
-    (e.g. ``("T->EM",)``; default: as built). Results go to ``out/centre_out.json`` after each condition; a rerun
-    with the same description skips the conditions already there. Returns that file's content."""
+    network without any target code and its pathways; when ``config``'s only plastic pathways were the code's,
+    nothing in the control learns and its trained networks are its naive ones). ``plastic``: names of the only
+    plastic pathways of the target-code network (e.g. ``("T->EM",)``; default: as built). Results go to
+    ``out/centre_out.json`` after each condition; a rerun with the same description skips the conditions already
+    there. Returns that file's content."""
     import dataclasses
     import json
     import time
