@@ -355,15 +355,14 @@ def _centre_out_main(ap, args) -> int:
     import dataclasses
     import time
 
-    from jaxarm.task.centre_out import CentreOut, train_and_test, with_target_code
+    from jaxarm.task.centre_out import CentreOut, ensure_target_code, train_and_test
 
     try:
         if args.learning != "rstdp" or args.record_spikes:
             raise ConfigError("--task centre-out-8: R-STDP learning only, without --record-spikes (not yet)")
         task = CentreOut(epochs_per_target=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s)
         net = network_config(args)
-        if not net.spec.target_codes:
-            net = dataclasses.replace(net, spec=with_target_code(net.spec, task))
+        net = dataclasses.replace(net, spec=ensure_target_code(net.spec, task))
         if args.coordinator or args.num_processes:
             raise ConfigError("--task centre-out-8 runs in one process (no --coordinator yet)")
         # every usable core as the native kernel's threads (--devices N narrows it), the batch in one process

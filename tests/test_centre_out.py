@@ -11,7 +11,7 @@ from jaxarm.config.network import NetworkConfig
 from jaxarm.config.spec import NetworkSpec
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
-from jaxarm.task.centre_out import CENTRE_OUT_8, CentreOut, make_centre_out_train, with_target_code
+from jaxarm.task.centre_out import CENTRE_OUT_8, CentreOut, ensure_target_code, make_centre_out_train, with_target_code
 from jaxarm.task.config import TARGET_ANGLES_RAD, forward_kinematics_m
 
 TINY = dict(epochs_per_target=1, epoch_duration_s=0.2, test_duration_s=0.2)
@@ -27,6 +27,10 @@ def test_the_eight_targets_lie_15_cm_away_every_45_degrees():
     assert task.task_config().epochs == 24
     with pytest.raises(ConfigError, match="CentreOut.targets"):
         CentreOut(targets=("left", "nowhere"))
+    paper = NetworkSpec.dura_bernal_2015()
+    coded = with_target_code(paper, task)
+    assert coded.without_population("T") == paper                     # removing the code gives the paper's back
+    assert ensure_target_code(coded, task) is coded and ensure_target_code(paper, task) == coded
     with pytest.raises(ConfigError, match=r"target 0 \(left\) lies at 180.0 degrees"):
         with_target_code(NetworkSpec.dura_bernal_2015(), CentreOut(targets=("left", "right")))
 

@@ -402,8 +402,14 @@ class NetworkSpec:
             raise ConfigError(f"plastic pathways: no pathway {sorted(unknown)[0]!r}; known: "
                               f"{', '.join(pw.name for pw in self.pathways)}")
         pws = [dataclasses.replace(pw, plastic=pw.name in names) for pw in self.pathways]
-        rank = [0 if pw.plastic else 2 if pw.pre in self.generators else 1 for pw in pws]
-        return dataclasses.replace(self, pathways=tuple(pw for _, pw in sorted(zip(rank, pws), key=lambda x: x[0])))
+        return dataclasses.replace(self, pathways=tuple(sorted(
+            pws, key=lambda pw: 0 if pw.plastic else 2 if pw.pre in self.generators else 1)))   # sorted is stable
+
+    def without_population(self, name: str) -> "NetworkSpec":
+        """This spec without the population ``name`` and every pathway from or to it."""
+        self.population(name)   # KeyError naming the known ones
+        return dataclasses.replace(self, populations=tuple(p for p in self.populations if p.name != name),
+                                   pathways=tuple(pw for pw in self.pathways if name not in (pw.pre, pw.post)))
 
     # ----- as data -----
     def to_dict(self) -> dict:

@@ -133,13 +133,12 @@ def make_centre_out(options: fitness.FitnessOptions, margin_m: float = 0.02) -> 
     over targets of how far the closest approach stays outside the circle ``margin_m`` inside the success circle."""
     import dataclasses
 
-    from jaxarm.task.centre_out import make_centre_out_train, with_target_code
+    from jaxarm.task.centre_out import ensure_target_code, make_centre_out_train
 
     train_s = 8 * 3 * EPOCH_S if options.train_s is None else float(options.train_s)
     task = _centre_out_task(options.targets, train_s)
     network = options.network_config()
-    if not any(p.code == "target" for p in network.spec.populations):
-        network = dataclasses.replace(network, spec=with_target_code(network.spec, task))
+    network = dataclasses.replace(network, spec=ensure_target_code(network.spec, task))
     fns = make_centre_out_train(LoopConfig(arm=options.arm, network=network, task=task.task_config()), task)
     radius_m = task.success_radius_m
 

@@ -86,6 +86,11 @@ def with_target_code(spec: NetworkSpec, task: CentreOut = CentreOut(), name: str
     return spec
 
 
+def ensure_target_code(spec: NetworkSpec, task: CentreOut = CentreOut(), **code) -> NetworkSpec:
+    """``spec`` itself when it already has a target code, else ``with_target_code(spec, task, **code)``."""
+    return spec if spec.target_codes else with_target_code(spec, task, **code)
+
+
 class CentreOutFns(NamedTuple):
     """``train(key, mp) -> (Trained, EpochSummary history)``; ``test(key, trained, mp) -> TestResult`` with a
     leading target axis; ``fns``: the underlying :class:`jaxarm.train.TrainFns`."""
@@ -182,9 +187,8 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
     out = Path(out)
     base = config.network.spec
     for name in base.target_codes:        # the control: the network without its target code(s) and their pathways
-        base = dataclasses.replace(base, populations=tuple(p for p in base.populations if p.name != name),
-                                   pathways=tuple(pw for pw in base.pathways if name not in (pw.pre, pw.post)))
-    coded = config.network.spec if config.network.spec.target_codes else with_target_code(base, task, **(code or {}))
+        base = base.without_population(name)
+    coded = ensure_target_code(config.network.spec, task, **(code or {}))
     if plastic is not None:
         coded = coded.with_plastic(plastic)
     specs = {"target-code": coded, "control": base}
@@ -209,7 +213,8 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
         r = train_and_test(cfg, task, seeds, mp)
         for k in ("trained", "naive"):
             r[k].pop("hand_m")
-        r.update(condition=name, populations=list(specs[name].names), network_seconds=len(r["seeds"]) * task.task_config().epochs * task.epoch_duration_s,
+        r.update(condition=name, populations=list(specs[name].names),
+                 network_seconds=len(r["seeds"]) * task.task_config().epochs * task.epoch_duration_s,
                  wall_s=round(time.perf_counter() - t0, 1))
         result["conditions"][name] = r
         path.write_text(json.dumps(result, indent=1))
