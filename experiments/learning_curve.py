@@ -15,7 +15,8 @@ largest excursion of each joint (rad), and the critic's rewards and punishments 
 
 Outputs in ``--out``: ``learning_curve.json`` (the command, preset, metaparameters, seeds and the curves),
 ``learning_curve.png`` and, per target, an orbax checkpoint after every epoch (a killed run started again with the
-same command resumes from its last completed epoch with the same results).
+same command resumes from its last completed epoch with the same results; ``jaxarm train --test-each-epoch``
+keeps the same tests in its checkpoints).
 """
 from __future__ import annotations
 
@@ -46,43 +47,26 @@ def curve_for_target(arm: str, target: str, mp, epochs: int, n: int, seed: int, 
                      log=print, stop_after: int | None = None) -> dict:
     """Train ``n`` networks on ``target`` for ``epochs`` epochs of ``epoch_s`` s, testing after each (and before the
     first). ``stop_after``: return after that many epochs of this call, as a kill would (tests use it)."""
-    import jax
-
-    from jaxarm.checkpoint import Checkpointer
     from jaxarm.loop import LoopConfig
     from jaxarm.run import Run
     from jaxarm.task.config import START_POSTURE_RAD, TaskConfig
 
     config = LoopConfig(arm=arm, task=TaskConfig(target=target, epochs=epochs, epoch_duration_s=epoch_s))
-    run = Run(config, n, seed, out, mp)        # jaxarm train's networks, keys and test
-    mps, targets = run.batched_inputs()
-    carry = run.init_fn(run.keys())
-    rows: list[dict] = []
-    meta = {"arm": arm, "target": target, "networks": n, "seed": seed, "epoch_s": epoch_s, "metaparams": mp.to_dict()}
-    with Checkpointer(out / "checkpoints" / target) as ckpt:
-        done = 0
-        saved = ckpt.read_meta()
-        if saved is not None:
-            if {k: saved.get(k) for k in meta} != meta:
-                raise SystemExit(f"{out / 'checkpoints' / target} holds another run ({saved}); use another --out")
-            (carry,), _ = ckpt.restore((carry,))
-            done, rows = int(ckpt.latest_step()), saved["rows"]
-        if done == 0:
-            rows = [dict(epoch=0, **summarize(run.test(carry.trained), START_POSTURE_RAD),
-                         rewards_mean=None, punishments_mean=None)]
-        t0 = time.perf_counter()
-        last = epochs if stop_after is None else min(epochs, done + stop_after)
-        for e in range(done, last):
-            carry, summary = run.epoch_fn(carry, mps, targets)
-            summary = jax.tree.map(lambda x: np.asarray(x)[:n], summary)
-            row = dict(epoch=e + 1, **summarize(run.test(carry.trained), START_POSTURE_RAD),
-                       rewards_mean=round(float(np.mean(summary.rewards)), 2),
-                       punishments_mean=round(float(np.mean(summary.punishments)), 2))
-            rows.append(row)
-            ckpt.save(e + 1, (carry,), dict(meta, rows=rows))
-            log(f"{arm}/{target} epoch {e + 1}/{epochs}: {row['success']}/{n} reached, median closest "
-                f"{row['closest_median_cm']:.1f} cm, {row['misses_elbow_led']} elbow-led misses "
-                f"({time.perf_counter() - t0:.0f} s)")
+    # jaxarm train's networks, keys, test and checkpoints (out/TARGET/checkpoints; a rerun resumes)
+    run = Run(config, n, seed, out / target, mp)
+    t0 = time.perf_counter()
+    _, history, *_ = run.train(progress=False, stop_after=stop_after,
+                               test_each_epoch=lambda test: summarize(test, START_POSTURE_RAD))
+    rows = [dict(epoch=0, **summarize(run.test(run.naive()), START_POSTURE_RAD), rewards_mean=None,
+                 punishments_mean=None)]
+    for e in sorted(run.learning_curve):
+        rows.append(dict(epoch=e, **run.learning_curve[e],
+                         rewards_mean=round(float(np.mean(history.rewards[e - 1])), 2),
+                         punishments_mean=round(float(np.mean(history.punishments[e - 1])), 2)))
+    last = rows[-1]
+    log(f"{arm}/{target} {last['epoch']}/{epochs} epochs: {last['success']}/{n} reached, median closest "
+        f"{last['closest_median_cm']:.1f} cm, {last['misses_elbow_led']} elbow-led misses "
+        f"({time.perf_counter() - t0:.0f} s)")
     return {"target": target, "rows": rows}
 
 

@@ -58,9 +58,33 @@ def _network_rows(seeds, metrics) -> list[dict]:
     return rows
 
 
-def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
+def learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
+    """results.json's ``learning_curve`` from per-epoch tests (``Batch.learning_curve``: 1-based epoch ->
+    {"success", "min_distance_m"} per network) and the naive test's successes (epoch 0).
+
+    ``criterion_s`` per network: the training time (network-seconds) after which its test first succeeded: 0 if the
+    naive network already reaches, None if no tested epoch reached or if an epoch before the first success was not
+    tested (a run resumed with ``--test-each-epoch`` after training without it)."""
+    epochs = sorted(curve)
+    success = np.asarray([curve[e]["success"] for e in epochs], bool)              # (epochs, networks)
+    closest = np.asarray([curve[e]["min_distance_m"] for e in epochs], float)
+    complete = epochs == list(range(1, len(epochs) + 1))
+    criterion = []
+    for i, naive in enumerate(np.asarray(naive_success, bool)):
+        hits = np.nonzero(success[:, i])[0]
+        # sorted epochs from 1: epochs[j] == j + 1 means every epoch up to the first success was tested
+        first = 0 if naive else (epochs[hits[0]] if hits.size and epochs[hits[0]] == hits[0] + 1 else None)
+        criterion.append(None if first is None else round(first * epoch_s, 3))
+    return {"epochs": epochs, "epoch_s": epoch_s, "complete": complete,
+            "success_count": success.sum(axis=1).tolist(),
+            "median_min_distance_m": np.median(closest, axis=1).round(5).tolist(),
+            "criterion_s": criterion}
+
+
+def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None, curve=None):
     """Write a run's results.json, history.npz, trajectories.npz and reach.png (process 0 only; every process returns
-    the results). ``run``: a :class:`~jaxarm.run.Batch` of one target; the results and history are host arrays."""
+    the results). ``run``: a :class:`~jaxarm.run.Batch` of one target; the results and history are host arrays;
+    ``curve``: its per-epoch tests (``Batch.learning_curve`` rows of these networks), if any."""
     task = run.config.task
     dt = task.update_interval_s
     target = np.asarray(task.target_xy_m, np.float32)
@@ -95,6 +119,8 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
                    "device": jax.default_backend(), "layout": parallel.describe()},
         "config": {"loop": _jsonable(asdict(run.config)), **run.meta()},
     }
+    if curve:
+        results["learning_curve"] = learning_curve(curve, m_nv["success"], task.epoch_duration_s)
     if not parallel.is_main_process():
         return results
     run.out.mkdir(parents=True, exist_ok=True)
@@ -313,6 +339,9 @@ def train_main(argv: list[str] | None = None) -> int:
                          "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
                          "epoch, a target code added to the network unless --network has one, every network tested "
                          "on every target (jaxarm.task.centre_out; one process, no checkpoints)")
+    ap.add_argument("--test-each-epoch", action="store_true",
+                    help="also test every network after every epoch: results.json's learning_curve (successes per "
+                         "epoch, and per network the training seconds until its test first succeeded)")
     add_record_arguments(ap, train=True)
     parallel.add_arguments(ap)
     args = ap.parse_args(argv)
@@ -336,9 +365,10 @@ def train_main(argv: list[str] | None = None) -> int:
             run = Run(cfg, args.networks, args.seed, out, mp, record=record)
         except ConfigError as e:
             ap.error(str(e))
-        carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress)
+        carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress,
+                                                                test_each_epoch=args.test_each_epoch)
         res = write_outputs(run, run.test(carry.trained), run.test(run.naive(), "naive test"), history, wall,
-                            epochs_run, compile_s)
+                            epochs_run, compile_s, run.learning_curve)
         summary[target] = res["success_count"]
         if parallel.is_main_process():
             print(f"{args.arm} arm, {target} target: {res['success_count']}/{args.networks} trained networks reached "
@@ -358,8 +388,9 @@ def _centre_out_main(ap, args) -> int:
     from jaxarm.task.centre_out import CentreOut, ensure_target_code, train_and_test
 
     try:
-        if args.learning != "rstdp" or args.record_spikes:
-            raise ConfigError("--task centre-out-8: R-STDP learning only, without --record-spikes (not yet)")
+        if args.learning != "rstdp" or args.record_spikes or args.test_each_epoch:
+            raise ConfigError("--task centre-out-8: R-STDP learning only, without --record-spikes or "
+                              "--test-each-epoch (not yet)")
         task = CentreOut(epochs_per_target=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s)
         net = network_config(args)
         net = dataclasses.replace(net, spec=ensure_target_code(net.spec, task))

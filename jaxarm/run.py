@@ -17,7 +17,7 @@ import functools
 import sys
 import time
 from pathlib import Path
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import numpy as np
@@ -99,6 +99,13 @@ def add_network_arguments(ap, note: str = "") -> None:
                          "in-degrees, P code and readout drive kept; docs/model.md)")
 
 
+def curve_entry(result: TestResult) -> dict:
+    """What :meth:`Batch.train` keeps of a test after an epoch by default: per network, success and closest
+    approach (m)."""
+    return {"success": np.asarray(result.success).tolist(),
+            "min_distance_m": np.asarray(result.min_distance_m).round(5).tolist()}
+
+
 class Batch:
     """Networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and targets ``targets[i]`` (stacked), trained
     with one configuration into ``out`` (checkpoints in ``out/checkpoints``). ``description``: the JSON identity of
@@ -117,6 +124,9 @@ class Batch:
         #: the RecordConfig (jaxarm.record) or None; its windows' capacities and memory bound; the epochs recorded
         #: by this invocation of :meth:`train` (1-based epoch -> host Recording of the real networks)
         self.record, self.record_capacity, self.record_memory, self.epoch_records = record, {}, None, {}
+        #: epoch (1-based) -> {"success", "min_distance_m"}: per-network tests after that epoch (train's
+        #: test_each_epoch; kept in the checkpoints' meta, so a resumed run keeps the epochs tested before)
+        self.learning_curve: dict[int, dict] = {}
         if record is not None:
             self._check_record()
         self.fns, self.init_fn, self.epoch_fn, self.test_fn, self.epoch_rec_fn = compiled(config, self.mesh, record)
@@ -161,7 +171,7 @@ class Batch:
     def check_resumable(self, saved: dict) -> None:
         """Refuse to resume a checkpoint written by a different run (a folder from before the kernel was recorded
         resumes on either kernel). The layout (devices, processes) may differ: results do not depend on it."""
-        saved = {k: v for k, v in saved.items() if k != "layout"}
+        saved = {k: v for k, v in saved.items() if k not in ("layout", "learning_curve")}
         mine = self.meta()
         if "kernel" not in saved:
             mine.pop("kernel")
@@ -237,10 +247,14 @@ class Batch:
         one = jax.eval_shape(lambda c, m, t: self.epoch_fn(c, m, t)[1], carry, mps, targets)
         return jax.tree.map(lambda s: np.zeros((self.config.task.epochs, self.n) + s.shape[1:], s.dtype), one)
 
-    def train(self, progress: bool = True, stop_after: int | None = None):
+    def train(self, progress: bool = True, stop_after: int | None = None,
+              test_each_epoch: bool | Callable[[TestResult], dict] = False):
         """Train all networks (resuming from ``out/checkpoints``). ``stop_after``: return after that many epochs of
-        this invocation, as a kill would (tests use it). Returns (carry, history, wall_s, epochs_run, compile_s):
-        ``carry`` on the mesh (padded), ``history`` host arrays (epochs, networks, ...)."""
+        this invocation, as a kill would (tests use it). ``test_each_epoch``: also run the 1 s test after every
+        epoch and keep ``summarise(result)`` (a JSON-able dict; True: :func:`curve_entry`) in
+        :attr:`learning_curve`; its time is not counted in ``wall_s``. Returns (carry, history, wall_s, epochs_run,
+        compile_s): ``carry`` on the mesh (padded), ``history`` host arrays (epochs, networks, ...)."""
+        summarise = test_each_epoch if callable(test_each_epoch) else curve_entry
         from jaxarm.checkpoint import Checkpointer
 
         epochs = self.config.task.epochs
@@ -255,6 +269,8 @@ class Batch:
                 self.check_resumable(saved)
                 carry, history = self._restore(ckpt, carry, history, saved)
                 done = int(ckpt.latest_step())
+                self.learning_curve = {int(e): v for e, v in saved.get("learning_curve", {}).items()
+                                       if int(e) <= done}
             last = epochs if stop_after is None else min(epochs, done + stop_after)
             recorded = self.record.recorded_epochs(epochs) if self.record is not None else ()
             skipped = [e for e in recorded if e <= done]
@@ -282,8 +298,11 @@ class Batch:
                 self.check_capacity(summary.lost_spikes, f"training epoch {e + 1}")
                 for h, s in zip(history, summary):
                     h[e] = s
+                if test_each_epoch:
+                    self.learning_curve[e + 1] = summarise(self.test(carry.trained, f"test after epoch {e + 1}"))
                 ckpt.save(e + 1, (carry, parallel.put(history, parallel.REPLICATED, self.mesh)),
-                          self.meta() | {"layout": self.layout()})
+                          self.meta() | {"layout": self.layout(),
+                                         "learning_curve": {str(k): v for k, v in self.learning_curve.items()}})
                 if bar is not None:
                     sim_s = (e + 1 - done) * self.config.task.epoch_duration_s
                     bar.set_postfix(sim_s=f"{(e + 1) * self.config.task.epoch_duration_s:.0f}",

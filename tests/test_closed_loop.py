@@ -292,14 +292,27 @@ def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
     assert len(partial["rows"]) == 2
     assert mod.curve_for_target("simple", "left", mp, 2, 2, 5, tmp_path / "b", epoch_s=0.3, log=quiet) == full
 
-    run = Run(LoopConfig(arm="simple", task=TaskConfig(target="left", epochs=2, epoch_duration_s=0.3)), 2, 5,
-              tmp_path / "run", mp)
-    carry, *_ = run.train(progress=False)
-    for row, res in ((full["rows"][2], run.test(carry.trained)), (full["rows"][0], run.test(run.naive()))):
+    tests = []
+    for epochs in (1, 2):      # runs of each length, trained without per-epoch tests: the independent reference
+        run = Run(LoopConfig(arm="simple", task=TaskConfig(target="left", epochs=epochs, epoch_duration_s=0.3)), 2,
+                  5, tmp_path / f"run{epochs}", mp)
+        carry, *_ = run.train(progress=False)
+        tests.append((full["rows"][epochs], run.test(carry.trained)))
+    tests.append((full["rows"][0], run.test(run.naive())))
+    for row, res in tests:
         assert row["closest_median_cm"] == round(100 * float(np.median(np.asarray(res.min_distance_m))), 3)
         assert row["success"] == int(np.asarray(res.success).sum())
-    with pytest.raises(SystemExit, match="another run"):
+    with pytest.raises(SystemExit, match="different run"):
         mod.curve_for_target("simple", "left", mp, 2, 2, 6, tmp_path / "a", epoch_s=0.3, log=quiet)
+
+    # jaxarm train --test-each-epoch keeps the same tests in results.json
+    from jaxarm.cli import main
+    assert main(["train", "--networks", "2", "--seed", "5", "--epochs", "2", "--epoch-s", "0.3", "--test-each-epoch",
+                 "--out", str(tmp_path / "cli"), "--no-progress"]) == 0
+    curve = json.loads((tmp_path / "cli" / "results.json").read_text())["learning_curve"]
+    assert curve["success_count"] == [r["success"] for r in full["rows"][1:]]
+    assert [100 * d for d in curve["median_min_distance_m"]] == \
+        [pytest.approx(r["closest_median_cm"], abs=2e-3) for r in full["rows"][1:]]
 
 
 @pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
@@ -429,3 +442,21 @@ def test_trained_networks_reach_closer_than_their_naive_selves(tmp_path):
     trained, naive = (np.asarray(run.test(t).min_distance_m) for t in (carry.trained, run.naive()))
     assert np.all(naive > 0.10), naive
     assert np.all(trained < 0.5 * naive) and trained.min() < 0.04, (trained, naive)
+
+
+def test_learning_curve_criterion_by_hand():
+    # three networks tested after epochs 1 and 2 of 30 s: the second first reaches after epoch 2 (60 s), the third
+    # after epoch 1 (30 s, and it does not matter that it misses again), the first never
+    from jaxarm.experiment import learning_curve
+
+    curve = {1: {"success": [False, False, True], "min_distance_m": [0.10, 0.05, 0.03]},
+             2: {"success": [False, True, False], "min_distance_m": [0.09, 0.02, 0.05]}}
+    out = learning_curve(curve, [False, False, False], 30.0)
+    assert out["criterion_s"] == [None, 60.0, 30.0] and out["success_count"] == [1, 1] and out["complete"]
+    assert out["median_min_distance_m"] == [0.05, 0.05]
+    assert learning_curve(curve, [True, False, False], 30.0)["criterion_s"] == [0, 60.0, 30.0]   # naive reaches
+    # a run resumed with the tests after training without them: epoch 1 untested, so no first success is known
+    # after it; with epochs 1 and 3 tested, a first success at 3 is unknown (epoch 2 untested), at 1 it is known
+    assert learning_curve({2: curve[2]}, [False] * 3, 30.0)["criterion_s"] == [None, None, None]
+    gap = learning_curve({1: curve[1], 3: curve[2]}, [False] * 3, 30.0)
+    assert gap["criterion_s"] == [None, None, 30.0] and not gap["complete"]
