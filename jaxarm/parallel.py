@@ -11,7 +11,8 @@ Set-up, once per process and before JAX computes anything (:func:`start`; the co
 ``--coordinator``, ``--num-processes``, ``--process-id``, see :func:`add_arguments`):
 
 * CPU: ``devices`` host devices per process (default: the cores this process may use), each running one network
-  kernel thread, so a command uses the whole machine.
+  kernel thread, so a command uses the whole machine; a device may wait for the others at a gather for up to 6 h
+  (:data:`COLLECTIVE_WAIT_S`; XLA's own default aborts after 40 s).
 * Several processes (machines): ``jax.distributed.initialize`` with the coordinator's address, or with nothing under
   SLURM or Open MPI (JAX reads their environment); CPU collectives through gloo. Process 0 writes the outputs;
   checkpoints are orbax multi-process checkpoints on a file system all processes share.
@@ -54,6 +55,21 @@ def _cluster_detected() -> bool:
     return slurm or ompi
 
 
+#: XLA:CPU's limits on how long one device waits at a collective for the others: by default it warns after 20 s and
+#: aborts the process after 40 s ("to ensure a consistent program state"). A batch's shares can differ by minutes
+#: (networks firing at different rates, a shared machine), so a search's gather of fitness would abort a healthy run;
+#: :func:`start` raises both unless ``XLA_FLAGS`` already sets them.
+COLLECTIVE_WAIT_S = {"xla_cpu_collective_call_warn_stuck_timeout_seconds": 600,
+                     "xla_cpu_collective_call_terminate_timeout_seconds": 6 * 3600}
+
+
+def _relax_collective_waits() -> None:
+    flags = os.environ.get("XLA_FLAGS", "")
+    extra = [f"--{name}={seconds}" for name, seconds in COLLECTIVE_WAIT_S.items() if name not in flags]
+    if extra:
+        os.environ["XLA_FLAGS"] = " ".join([flags, *extra]).strip()
+
+
 _started = False
 
 
@@ -85,6 +101,7 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
     if _started or xla_bridge.backends_are_initialized():
         return
     _started = True
+    _relax_collective_waits()      # read by XLA when the backend starts, just below
     jax.config.update("jax_num_cpu_devices", devices or usable_cores())
     distributed = all(explicit) and num_processes > 1
     if distributed or _cluster_detected() or os.environ.get("JAX_COORDINATOR_ADDRESS"):

@@ -141,3 +141,35 @@ def test_two_processes_search_the_reaching_task_like_one(tmp_path):
         if f == "history.json":
             ha, hb = ha["history"], hb["history"]
         assert ha == hb, f
+
+
+def test_a_device_may_wait_longer_than_xlas_40_s_at_a_gather(monkeypatch):
+    """XLA:CPU aborts a process whose device waits 40 s at a collective for the others; `parallel.start` passes it
+    longer limits (unless XLA_FLAGS sets them). Shown with a 1 s warning limit passed the same way: device 0 arrives
+    2 s late at a psum and XLA warns, so XLA reads what start() sets."""
+    from jaxarm import parallel
+
+    code = """
+import time
+import jax, jax.numpy as jnp
+from jax import lax
+from jax.sharding import PartitionSpec as P
+from jaxarm import parallel
+parallel.COLLECTIVE_WAIT_S["xla_cpu_collective_call_warn_stuck_timeout_seconds"] = 1
+parallel.start(devices=2)
+late = lambda x: (time.sleep(2.0), x)[1]
+share = lambda x: lax.psum(lax.cond(lax.axis_index(parallel.AXIS) == 0, lambda x: jax.pure_callback(late, x, x),
+                                    lambda x: x, x), parallel.AXIS)
+print(jax.jit(jax.shard_map(share, mesh=parallel.mesh(), in_specs=P(parallel.AXIS), out_specs=P(),
+                    check_vma=False))(jnp.ones(2)))
+"""
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "may be stuck" in proc.stderr and "[2.]" in proc.stdout
+    # the defaults: minutes, not XLA's seconds; a limit the user set in XLA_FLAGS is kept
+    assert parallel.COLLECTIVE_WAIT_S["xla_cpu_collective_call_terminate_timeout_seconds"] >= 3600
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_collective_call_warn_stuck_timeout_seconds=5")
+    parallel._relax_collective_waits()
+    assert os.environ["XLA_FLAGS"].split() == ["--xla_cpu_collective_call_warn_stuck_timeout_seconds=5",
+                                               "--xla_cpu_collective_call_terminate_timeout_seconds=21600"]
