@@ -192,3 +192,32 @@ def test_gradient_steps_bring_the_hand_closer():
     loss = np.asarray(summary.loss_m)
     assert np.all(np.asarray(summary.finite))
     assert np.all(loss[:, -1] < 0.8 * loss[:, 0]), loss
+
+
+def test_the_comparison_trains_each_headline_preset_as_reproduce_does(tmp_path):
+    # experiments/gradient_vs_rstdp.py's rstdp-preset condition: per target, `jaxarm train --set ...` with the best
+    # set of the preset `jaxarm reproduce` trains in its mode (a), to the bit after the CLI's parsing
+    import importlib.util
+    import types
+    from pathlib import Path
+
+    from jaxarm.experiment import _parse_overrides
+    from jaxarm.paper import presets
+    from jaxarm.paper.reproduce import DEFAULT_PROTOCOL
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "gradient_vs_rstdp.py"
+    spec = importlib.util.spec_from_file_location("gradient_vs_rstdp", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    for arm in ("simple", "musculoskeletal"):
+        cmds = mod.preset_commands(types.SimpleNamespace(arm=arm, networks=30, seed=0), tmp_path)
+        for target, cmd in cmds.items():
+            name, epochs, extra = DEFAULT_PROTOCOL[arm][target]["seeds"]
+            want = presets.load(name).best_metaparams().replace(**extra) if extra else \
+                presets.load(name).best_metaparams()
+            got = MetaParams.from_dict(_parse_overrides([c.split("=", 1)[1] for c in cmd if c.startswith("--set=")]))
+            for k, v in want.to_dict().items():
+                if k != "epochs":
+                    assert np.float32(getattr(got, k)) == np.float32(v), (arm, target, k)
+            assert int(cmd[cmd.index("--epochs") + 1]) == (epochs or int(want.to_dict()["epochs"]))
+            assert cmd[cmd.index("--target") + 1] == target
