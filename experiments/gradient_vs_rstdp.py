@@ -16,7 +16,8 @@ ARM`` trains in its mode (a); same seeds); ``gradient-N`` = Adam on the mean han
 training stream and on a fresh one, median closest approach, network-seconds of training until a network's test
 first succeeded (median over those that got there), median time of first entry and distance after entry over the
 networks that entered, median dimensionless jerk of the trained test paths (Fig. 7's measure), and the training
-wall time with its network-seconds per second (this machine, this run).
+wall time with its network-seconds per second (this machine, this run). OUT/curves_ARM.png: networks reaching
+after every epoch against the network-seconds trained, per target and condition.
 """
 from __future__ import annotations
 
@@ -114,6 +115,36 @@ def write_table(table: dict, out: Path) -> None:
     print("\n".join(lines), flush=True)
 
 
+def plot_curves(out: Path, arm: str, conditions) -> Path:
+    """OUT/curves_ARM.png: networks whose test reaches after each epoch against the network-seconds trained, one
+    panel per target, one line per condition (from the conditions' results.json learning curves)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(TARGETS), figsize=(4.2 * len(TARGETS), 3.4), sharey=True, layout="constrained")
+    for ax, target in zip(axes, TARGETS):
+        for condition in conditions:
+            res = json.loads((out / arm / condition / target / "results.json").read_text())
+            curve = res["learning_curve"]
+            x = [0.0] + [e * curve["epoch_s"] for e in curve["epochs"]]
+            y = [res["naive"]["success_count"]] + curve["success_count"]
+            ax.plot(x, y, marker="o", ms=3, label=condition)
+        ax.set_xscale("symlog", linthresh=5.0)     # linear to 5 s (the naive point at 0), logarithmic beyond
+        ticks = [0, 5, 10, 30, 60, 120, 360, 720]
+        ax.set_xticks(ticks, [str(t) for t in ticks])
+        ax.minorticks_off()
+        ax.set_xlabel("training per network (network-s)")
+        ax.set_title(f"{arm} arm, {target} target")
+    axes[0].set_ylabel(f"networks reaching (of {res['n_networks']})")
+    axes[-1].legend(fontsize=8)
+    path = out / f"curves_{arm}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="simple")
@@ -148,6 +179,7 @@ def main(argv=None) -> int:
                 "fresh_noise_success": json.loads((fresh / "results.json").read_text())["success_count"]}
         table["conditions"][condition] = {"commands": shown, "targets": rows}
         write_table(table, args.out)     # after every condition: a long run killed keeps what it finished
+    plot_curves(args.out, args.arm, list(table["conditions"]))
     return 0
 
 
