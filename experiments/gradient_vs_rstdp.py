@@ -35,20 +35,21 @@ TARGETS = ("left", "bottom")
 
 
 def preset_commands(args, out: Path) -> dict[str, list[str]]:
-    """target -> the ``jaxarm train`` command of the arm's headline preset for that target, mode (a): its best
-    metaparameters (``--set``), its epochs (or the protocol's), the protocol's own ``--set``."""
+    """target -> the ``jaxarm train`` command of what ``jaxarm reproduce --arm ARM`` trains in its mode (a) for that
+    target (``reproduction_plan``: the headline preset's best set with the protocol's ``--set``, and the
+    protocol's epochs), its metaparameters passed as ``--set``."""
     from jaxarm.paper import presets
-    from jaxarm.paper.reproduce import DEFAULT_PROTOCOL
+    from jaxarm.paper.reproduce import reproduction_plan
 
+    plan = reproduction_plan(None, args.arm, list(TARGETS), None, 1, {}, presets.PRESET_DIR)
     cmds = {}
     for target in TARGETS:
-        name, epochs, extra = DEFAULT_PROTOCOL[args.arm][target]["seeds"]
-        best = presets.load(name).best | extra
-        epochs = epochs if epochs is not None else int(best["epochs"])
-        sets = [f"--set={k}={v!r}" for k, v in best.items() if k != "epochs"]
+        step = plan[target]["seeds"]
+        sets = [f"--set={k}={float(v)!r}" for k, v in step["sets"][0].to_dict().items() if k != "epochs"]
         cmds[target] = [sys.executable, "-m", "jaxarm.cli", "train", "--arm", args.arm, "--target", target,
                         "--networks", str(args.networks), "--seed", str(args.seed), "--out", str(out / target),
-                        "--no-progress", "--test-each-epoch", "--epochs", str(epochs), "--epoch-s", "30", *sets]
+                        "--no-progress", "--test-each-epoch", "--epochs", str(step["epochs"]), "--epoch-s", "30",
+                        *sets]
     return cmds
 
 

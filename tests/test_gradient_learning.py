@@ -212,12 +212,15 @@ def test_the_comparison_trains_each_headline_preset_as_reproduce_does(tmp_path):
     for arm in ("simple", "musculoskeletal"):
         cmds = mod.preset_commands(types.SimpleNamespace(arm=arm, networks=30, seed=0), tmp_path)
         for target, cmd in cmds.items():
-            name, epochs, extra = DEFAULT_PROTOCOL[arm][target]["seeds"]
+            name, _, extra = DEFAULT_PROTOCOL[arm][target]["seeds"]
             want = presets.load(name).best_metaparams().replace(**extra) if extra else \
                 presets.load(name).best_metaparams()
             got = MetaParams.from_dict(_parse_overrides([c.split("=", 1)[1] for c in cmd if c.startswith("--set=")]))
             for k, v in want.to_dict().items():
                 if k != "epochs":
                     assert np.float32(getattr(got, k)) == np.float32(v), (arm, target, k)
-            assert int(cmd[cmd.index("--epochs") + 1]) == (epochs or int(want.to_dict()["epochs"]))
+            # the training lengths of the README's headline counts (the musculoskeletal preset searched with 4
+            # epochs; its published counts, and reproduce, train 12)
+            assert int(cmd[cmd.index("--epochs") + 1]) == {"simple": {"left": 6, "bottom": 16},
+                                                           "musculoskeletal": {"left": 12, "bottom": 12}}[arm][target]
             assert cmd[cmd.index("--target") + 1] == target

@@ -309,16 +309,16 @@ def test_musculoskeletal_reproduce_with_the_shipped_preset_then_retest(tmp_path)
 def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     """Without --preset, each (target, mode) runs the preset, epochs and settings of the README's headline row
     (read from the shipped preset files), says so first, and the table records it with the paper's measures."""
-    from jaxarm.paper.reproduce import DEFAULT_PROTOCOL, _plan
+    from jaxarm.paper.reproduce import DEFAULT_PROTOCOL, reproduction_plan
 
-    plan = _plan(None, "simple", None, None, 30, {}, presets.PRESET_DIR)
+    plan = reproduction_plan(None, "simple", None, None, 30, {}, presets.PRESET_DIR)
     assert {t: {m: (s["preset"].name, s["epochs"], s["set"]) for m, s in modes.items()} for t, modes in plan.items()} \
         == {"left": {"seeds": ("simple-cmaes-left-shoulder", 6, {}), "top30": ("simple-cmaes-left-local", 6, {})},
             "bottom": {"seeds": ("simple-cmaes-shortfall-long", 16, {"explore_tot": 8.0}),
                        "top30": ("simple-cmaes-bottom-local", 16, {})}}
     assert all(float(m.explore_tot) == 8.0 for m in plan["bottom"]["seeds"]["sets"])
     assert len(plan["left"]["top30"]["sets"]) == 30
-    ms = _plan(None, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
+    ms = reproduction_plan(None, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
     assert {(s["preset"].name, s["epochs"]) for modes in ms.values() for s in modes.values()} \
         == {("msarm-cmaes-2cm-rerank", 12)} and list(ms) == ["left", "bottom"]
     assert set(DEFAULT_PROTOCOL) == {"simple", "musculoskeletal"}
@@ -334,19 +334,19 @@ def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     assert row["measures"]["seeds"]["jerk_trained"]["paper"] == 28.1
     assert "| left | networks reaching" in text
     with pytest.raises(ConfigError, match="default protocol has left, bottom"):
-        _plan(None, "simple", ["up"], None, 30, {}, presets.PRESET_DIR)
+        reproduction_plan(None, "simple", ["up"], None, 30, {}, presets.PRESET_DIR)
 
 
 def test_a_presets_protocol_sets_its_default_length(tmp_path):
     """A preset's `protocol` (the length its published numbers used) is what reproduce trains unless --epochs says
     otherwise; the headline musculoskeletal preset carries the paper's 12 epochs; a bad protocol names the field."""
-    from jaxarm.paper.reproduce import _plan
+    from jaxarm.paper.reproduce import reproduction_plan
 
     ms = presets.load("msarm-cmaes-2cm-rerank")
     assert ms.protocol["epochs"] == 12 and {float(m.epochs) for m in ms.top_metaparams()} == {4.0}
-    plan = _plan(ms, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
+    plan = reproduction_plan(ms, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
     assert {s["epochs"] for modes in plan.values() for s in modes.values()} == {12}
-    plan = _plan(ms, "musculoskeletal", ["left"], 3, 30, {}, presets.PRESET_DIR)
+    plan = reproduction_plan(ms, "musculoskeletal", ["left"], 3, 30, {}, presets.PRESET_DIR)
     assert {s["epochs"] for s in plan["left"].values()} == {3}
     assert presets.Preset.from_json(ms.to_json()).protocol == ms.protocol
     with pytest.raises(ConfigError, match="protocol = .*must be"):

@@ -164,7 +164,7 @@ def describe_protocol(plan: dict) -> str:
     return "\n".join(lines)
 
 
-def _plan(preset, arm: str, targets, epochs, top: int, overrides: dict, directory: Path) -> dict:
+def reproduction_plan(preset, arm: str, targets, epochs, top: int, overrides: dict, directory: Path) -> dict:
     """target -> mode -> {preset, sets, epochs, set}: what each (target, mode) group trains. One ``preset``
     for every group, or (None) the arm's :data:`DEFAULT_PROTOCOL`; ``epochs`` and ``overrides`` apply to all."""
     from jaxarm.learning.metaparams import MetaParams
@@ -234,7 +234,7 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
     if epochs is not None and not 1 <= epochs <= 1000:
         raise ConfigError(f"--epochs = {epochs}: must be in [1, 1000]")
     overrides = dict(overrides or {})
-    plan = _plan(preset, arm, targets, epochs, top, overrides, preset_dir)
+    plan = reproduction_plan(preset, arm, targets, epochs, top, overrides, preset_dir)
     targets = list(plan)
     if preset is None:
         log(f"the {arm} arm's default protocol (the README's headline numbers; --preset NAME runs one preset):\n"
