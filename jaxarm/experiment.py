@@ -81,10 +81,10 @@ def learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
             "criterion_s": criterion}
 
 
-def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None, curve=None):
+def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
     """Write a run's results.json, history.npz, trajectories.npz and reach.png (process 0 only; every process returns
-    the results). ``run``: a :class:`~jaxarm.run.Batch` of one target; the results and history are host arrays;
-    ``curve``: its per-epoch tests (``Batch.learning_curve`` rows of these networks), if any."""
+    the results). ``run``: a :class:`~jaxarm.run.Batch` of one target (its ``learning_curve``, if it was tested
+    after every epoch, becomes results.json's); the results and history are host arrays."""
     task = run.config.task
     dt = task.update_interval_s
     target = np.asarray(task.target_xy_m, np.float32)
@@ -119,8 +119,8 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
                    "device": jax.default_backend(), "layout": parallel.describe()},
         "config": {"loop": _jsonable(asdict(run.config)), **run.meta()},
     }
-    if curve:
-        results["learning_curve"] = learning_curve(curve, m_nv["success"], task.epoch_duration_s)
+    if run.learning_curve:
+        results["learning_curve"] = learning_curve(run.learning_curve, m_nv["success"], task.epoch_duration_s)
     if not parallel.is_main_process():
         return results
     run.out.mkdir(parents=True, exist_ok=True)
@@ -368,7 +368,7 @@ def train_main(argv: list[str] | None = None) -> int:
         carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress,
                                                                 test_each_epoch=args.test_each_epoch)
         res = write_outputs(run, run.test(carry.trained), run.test(run.naive(), "naive test"), history, wall,
-                            epochs_run, compile_s, run.learning_curve)
+                            epochs_run, compile_s)
         summary[target] = res["success_count"]
         if parallel.is_main_process():
             print(f"{args.arm} arm, {target} target: {res['success_count']}/{args.networks} trained networks reached "
