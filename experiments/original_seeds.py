@@ -49,6 +49,13 @@ def markdown(c: dict) -> str:
     for t, r in c["distance_at_ms"].items():
         lines.append(f"| distance at {t} ms, cm | {_range(r['original'])} | {_range(r['ours'])} | "
                      f"{r['mannwhitney_p']:.2f} (MW) |")
+    for key, label, digits in (("distance_after_cm", "reached: distance to the centre after first entry, cm", 2),
+                               ("time_inside_ms", "reached: time inside the circle, ms", 0),
+                               ("first_entry_ms", "reached: first entry, ms", 0)):
+        a = c["after_entry"][key]
+        cell = lambda m: (f"{m['mean']:.{digits}f} (SD {m['sd']:.{digits}f}; median {m['median']:.{digits}f}, "  # noqa: E731
+                          f"{m['p10']:.{digits}f}–{m['p90']:.{digits}f}; n {m['n']})")
+        lines.append(f"| {label} | {cell(a['original'])} | {cell(a['ours'])} | {a['mannwhitney_p']:.2f} (MW) |")
     f = c["fresh"]
     if f:
         orig, ours = f.get("original"), f.get("ours")

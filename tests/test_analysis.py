@@ -181,6 +181,35 @@ def test_slow_drift_below_the_onset_threshold_is_not_movement():
     assert float(reach_metrics(xy, TARGET, DT, onset_speed_m_s=0.005).onset_s) == pytest.approx(0.0, abs=1e-6)
 
 
+def test_distance_metrics_enter_and_stay_pass_through_never_enter():
+    from jaxarm.analysis import distance_metrics
+
+    # enters at sample 20 (3.5 cm) and stays at 3.5, 3.0, ... 1.0 cm then 1.0 cm to the end (samples 20..100)
+    stay = np.concatenate([np.linspace(15.0, 5.0, 20), np.linspace(3.5, 1.0, 6), np.full(75, 1.0)])
+    m = distance_metrics(stay, DT, 4.0)
+    assert bool(m.success) and float(m.first_entry_s) == pytest.approx(0.20, abs=1e-6)
+    assert float(m.time_inside_s) == pytest.approx(0.81, abs=1e-6)                     # 81 samples
+    assert float(m.distance_after_m) == pytest.approx((3.5 + 3.0 + 2.5 + 2.0 + 1.5 + 1.0 + 75 * 1.0) / 81, rel=1e-5)
+    # passes through: inside for samples 40..44 only (3.9, 2, 1, 2, 3.9 cm), then out to 14 cm
+    through = np.concatenate([np.linspace(15.0, 5.0, 40), [3.9, 2.0, 1.0, 2.0, 3.9], np.linspace(5.0, 14.0, 56)])
+    m = distance_metrics(through, DT, 4.0)
+    assert float(m.first_entry_s) == pytest.approx(0.40, abs=1e-6)
+    assert float(m.time_inside_s) == pytest.approx(0.05, abs=1e-6)
+    assert float(m.distance_after_m) == pytest.approx(through[40:].mean(), rel=1e-5)
+    never = np.linspace(15.0, 4.5, 101)
+    m = distance_metrics(never, DT, 4.0)
+    assert not bool(m.success) and float(m.time_inside_s) == 0.0
+    assert math.isnan(float(m.first_entry_s)) and math.isnan(float(m.distance_after_m))
+    # batched: the same three at once, and reach_metrics's fields equal distance_metrics's on an xy path
+    b = distance_metrics(np.stack([stay, through, never]), DT, 4.0)
+    assert b.success.tolist() == [True, True, False]
+    xy = synthetic_reach()
+    r = reach_metrics(xy, TARGET, DT)
+    d = distance_metrics(np.linalg.norm(xy - TARGET, axis=-1), DT)
+    for name in ("success", "first_entry_s", "time_inside_s", "distance_after_m"):
+        assert float(getattr(d, name)) == pytest.approx(float(getattr(r, name)), rel=1e-6), name
+
+
 def test_reach_metrics_vmap_and_summary_over_networks():
     paths = np.stack([synthetic_reach(), synthetic_reach() * 0.5, synthetic_reach()])
     batch = jax.jit(jax.vmap(reach_metrics, in_axes=(0, None, None)))(paths, TARGET, DT)
@@ -439,6 +468,28 @@ def test_seed_distribution_comparison_counts_and_tests(tmp_path):
     assert c["fresh"]["original"]["own_noise"]["k"] == 5
     assert (c["fresh"]["ours"]["k"], c["fresh"]["ours"]["n"], c["fresh"]["ours"]["tests_per_network"]) == (4, 12, 2)
     assert c["goal"]["p_at_original_rate"] == pytest.approx((5 / 6) ** 6)
+    # after entry (networks that reached; lines fall to their end distance at 1 s): ours end at 1 and 2 cm, entering
+    # the 4 cm circle when 15.1 - (15.1 - e) t <= 4, i.e. t >= 11.1 / (15.1 - e)
+    a = c["after_entry"]
+    for e, model in ((np.array([1.0, 2.0]), "ours"), (np.array([0.5, 1.0, 2.0, 3.0, 3.5]), "original")):
+        d = line(e)
+        inside = d <= 4.0
+        first = inside.argmax(axis=1)
+        after = [d[i, first[i]:].mean() for i in range(len(e))]
+        assert a["distance_after_cm"][model]["mean"] == pytest.approx(np.mean(after), rel=1e-5)
+        assert a["distance_after_cm"][model]["n"] == len(e)
+        assert a["time_inside_ms"][model]["mean"] == pytest.approx(10.0 * inside.sum(axis=1).mean(), rel=1e-6)
+        assert a["first_entry_ms"][model]["mean"] == pytest.approx(10.0 * first.mean(), rel=1e-6)
+    assert 0 < a["distance_after_cm"]["mannwhitney_p"] <= 1
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "original_seeds.py"
+    spec = importlib.util.spec_from_file_location("original_seeds", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    row = [ln for ln in script.markdown(c).splitlines() if "distance to the centre after first entry" in ln][0]
+    assert f"n {a['distance_after_cm']['original']['n']})" in row and f"{a['distance_after_cm']['ours']['mean']:.2f}" in row
     # several folders pool their networks (seeds 0-29 and 30-59); the goal stays "k of goal_of"
     pooled = mod.seed_distribution_comparison([folder, str(folder)], original, goal=6, goal_of=6)
     assert (pooled["success"]["ours"]["k"], pooled["success"]["ours"]["n"]) == (4, 12)

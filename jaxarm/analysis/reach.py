@@ -56,6 +56,41 @@ def _masked_mean(values, mask):
     return jnp.where(n > 0, total / jnp.maximum(n, 1), jnp.nan)
 
 
+class DistanceMetrics(NamedTuple):
+    """The reach metrics that need only the hand–target distance (for references that store nothing else, such as
+    the original NEURON model's runs); :func:`reach_metrics` computes the same fields the same way."""
+
+    success: jnp.ndarray                 # bool: the distance fell to the radius or below
+    first_entry_s: jnp.ndarray           # time of the first sample inside, s (NaN if never)
+    time_inside_s: jnp.ndarray           # total time inside the circle, s (0 if never)
+    distance_after_m: jnp.ndarray        # mean distance from first entry to the end, same unit as the input (NaN if never)
+
+
+@jax.jit
+def distance_metrics(distance, dt, radius_m=SUCCESS_RADIUS_M) -> DistanceMetrics:
+    """Entry, time inside and mean distance after entry of one trial from its hand–target distance alone.
+
+    Args:
+        distance (ArrayLike): (T,) hand–target distance, ``distance[k]`` at time k·dt, in the unit of ``radius_m``
+            (m by default; pass ``radius_m=4.0`` for cm).
+        dt (float): sample period in s.
+        radius_m (float): success radius, same unit as ``distance`` (paper: 0.04 m).
+    """
+    dist = jnp.asarray(distance)
+    if not jnp.issubdtype(dist.dtype, jnp.floating):
+        dist = dist.astype(jnp.float32)
+    n = dist.shape[-1]
+    inside = dist <= radius_m
+    success = jnp.any(inside, axis=-1)
+    entry = jnp.where(success, jnp.argmax(inside, axis=-1), n)          # n = "never"
+    return DistanceMetrics(
+        success=success,
+        first_entry_s=jnp.where(success, entry * dt, jnp.nan),
+        time_inside_s=jnp.sum(inside, axis=-1) * dt,
+        distance_after_m=_masked_mean(dist, (jnp.arange(n) >= entry[..., None]) & success[..., None]),
+    )
+
+
 @jax.jit
 def reach_metrics(xy, target_xy, dt, radius_m=SUCCESS_RADIUS_M, onset_speed_m_s=ONSET_SPEED_M_S) -> ReachMetrics:
     """Reach metrics of one trial.
@@ -73,9 +108,9 @@ def reach_metrics(xy, target_xy, dt, radius_m=SUCCESS_RADIUS_M, onset_speed_m_s=
     n = xy.shape[-2]
     k = jnp.arange(n)
     dist = jnp.sqrt(jnp.sum((xy - jnp.asarray(target_xy, xy.dtype)) ** 2, axis=-1))
-    inside = dist <= radius_m
-    success = jnp.any(inside)
-    entry = jnp.where(success, jnp.argmax(inside), n)          # n = "never"
+    by_distance = distance_metrics(dist, dt, radius_m)
+    success = by_distance.success
+    entry = jnp.where(success, jnp.argmax(dist <= radius_m), n)          # n = "never"
 
     speed = interval_speeds(xy, dt)                              # interval i joins samples i and i+1
     moving = speed > onset_speed_m_s
@@ -89,10 +124,10 @@ def reach_metrics(xy, target_xy, dt, radius_m=SUCCESS_RADIUS_M, onset_speed_m_s=
         success=success,
         min_distance_m=jnp.min(dist),
         final_distance_m=dist[-1],
-        first_entry_s=jnp.where(success, entry * dt, jnp.nan),
-        time_inside_s=jnp.sum(inside) * dt,
+        first_entry_s=by_distance.first_entry_s,
+        time_inside_s=by_distance.time_inside_s,
         onset_s=jnp.where(moves, onset * dt, jnp.nan),
         speed_before_m_s=_masked_mean(speed, before),
         speed_after_m_s=_masked_mean(speed, after),
-        distance_after_m=_masked_mean(dist, (k >= entry) & success),
+        distance_after_m=by_distance.distance_after_m,
     )

@@ -399,6 +399,7 @@ def seed_distribution_comparison(folder, original: dict | None = None, fresh_fol
     return {
         "folder": ", ".join(map(str, folders)), "target": res["target"], "measured": original["measured"],
         "blocks": blocks,
+        "after_entry": after_entry_comparison(ours_cm, float(t_ms[1] - t_ms[0]) / 1000.0, orig_cm, 0.010, radius_cm),
         "success": {"ours": c_ours, "original": c_orig, "fisher_p": float(stats.fisher_exact(table).pvalue)},
         "closest": compare(ours_cm.min(axis=1), orig_cm.min(axis=1)),
         "final": compare(ours_cm[:, -1], orig_cm[:, -1]),
@@ -408,6 +409,33 @@ def seed_distribution_comparison(folder, original: dict | None = None, fresh_fol
                  "p_at_original_upper_ci": float(stats.binom.sf(goal - 1, goal_of, c_orig["ci95"][1]))},
         "fresh": fresh,
     }
+
+
+def after_entry_comparison(ours_cm, ours_dt_s, original_cm, original_dt_s, radius_cm: float = 4.0) -> dict:
+    """The paper's after-entry measures that a distance trace alone gives, for the networks that entered the circle:
+    mean distance to the target centre from first entry to the end of the test (cm), time inside (ms) and time of
+    first entry (ms), each as mean, SD and n (the paper's "mean (SD) over successful trajectories"), median and 10–90
+    %, with the two-sided Mann–Whitney p between the models. ``ours_cm``, ``original_cm``: (networks, T) hand–target
+    distances in cm sampled every ``*_dt_s`` s from the test's start (:func:`jaxarm.analysis.distance_metrics`)."""
+    from scipy import stats
+
+    from jaxarm.analysis import distance_metrics, mean_sd
+
+    out: dict = {}
+    per_model = {"ours": distance_metrics(np.asarray(ours_cm, np.float64), ours_dt_s, radius_cm),
+                 "original": distance_metrics(np.asarray(original_cm, np.float64), original_dt_s, radius_cm)}
+    for key, field, scale in (("distance_after_cm", "distance_after_m", 1.0), ("time_inside_ms", "time_inside_s", 1e3),
+                              ("first_entry_ms", "first_entry_s", 1e3)):
+        values = {m: scale * np.asarray(getattr(d, field), float)[np.asarray(d.success, bool)]
+                  for m, d in per_model.items()}
+        out[key] = {m: mean_sd(v) | {"median": float(np.median(v)) if v.size else float("nan"),
+                                     "p10": float(np.percentile(v, 10)) if v.size else float("nan"),
+                                     "p90": float(np.percentile(v, 90)) if v.size else float("nan")}
+                    for m, v in values.items()}
+        out[key]["mannwhitney_p"] = (float(stats.mannwhitneyu(values["ours"], values["original"],
+                                                             alternative="two-sided").pvalue)
+                                     if values["ours"].size and values["original"].size else float("nan"))
+    return out
 
 
 #: Per-epoch quantities compared by :func:`original_epoch_comparison`: the critic's counts, the EM rate over the
