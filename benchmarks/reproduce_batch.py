@@ -1,9 +1,11 @@
 """`jaxarm reproduce` as one batch against the sequential reproduce of an earlier commit, alternated in one sitting.
 
     python benchmarks/reproduce_batch.py --baseline 2ed7486 [--networks 8] [--epochs 2] [--epoch-s 10] [--repeats 2]
+                                         [--arm musculoskeletal] [--preset P] [--baseline-threads 2]
 
 The baseline (default 2ed7486, the last commit before scale-out) trained a reproduction's (target, mode) groups one
-after another, each a batch on one CPU device with ``JAXARM_NATIVE_THREADS=2`` (its fastest setting on two cores);
+after another, each a batch on one CPU device with ``JAXARM_NATIVE_THREADS=2`` (its fastest setting on two cores;
+``--baseline-threads 1`` runs it as its default did, on one core);
 this checkout trains every group in one batch over every core (its default). Both run the same command,
 ``jaxarm reproduce --arm ARM --preset PRESET --networks N --top N --epochs E --epoch-s S``, in fresh output folders
 and fresh processes, alternately, ``--repeats`` times each; reported: median wall time of the whole command
@@ -54,6 +56,9 @@ def main(argv=None) -> int:
     ap.add_argument("--epochs", type=int, default=2)
     ap.add_argument("--epoch-s", type=float, default=10.0)
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--baseline-threads", type=int, default=2,
+                    help="JAXARM_NATIVE_THREADS of the baseline: 2 (default) is its fastest setting on two cores, 1 "
+                         "its own default, what `jaxarm reproduce` used unless that variable was set")
     ap.add_argument("--json", action="store_true", help="print only the final JSON line")
     args = ap.parse_args(argv)
     walls = {"sequential": [], "one_batch": []}
@@ -63,7 +68,7 @@ def main(argv=None) -> int:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(base), args.baseline],
                        check=True)
         try:
-            env_old = {**os.environ, "PYTHONPATH": str(base), "JAXARM_NATIVE_THREADS": "2"}
+            env_old = {**os.environ, "PYTHONPATH": str(base), "JAXARM_NATIVE_THREADS": str(args.baseline_threads)}
             env_new = {**os.environ, "PYTHONPATH": str(ROOT)}
             env_new.pop("JAXARM_NATIVE_THREADS", None)
             for r in range(args.repeats):
@@ -79,6 +84,7 @@ def main(argv=None) -> int:
            "network_seconds": 4 * args.networks * args.epochs * args.epoch_s,
            "config": {"baseline": args.baseline, "arm": args.arm, "preset": args.preset, "networks": args.networks,
                       "epochs": args.epochs, "epoch_s": args.epoch_s, "repeats": args.repeats,
+                      "baseline_threads": args.baseline_threads,
                       "cpu_count": os.cpu_count(), "machine": platform.machine(), "date": time.strftime("%Y-%m-%d")}}
     if not args.json:
         print(f"median wall: sequential {med['sequential']} s, one batch {med['one_batch']} s, ratio "
