@@ -229,8 +229,9 @@ def test_every_shipped_preset_loads_and_is_within_bounds():
     # the README's presets sit in the package folder, the other searches' in archive/, loadable by name
     assert set(presets.available()) == {"original", "msarm-cmaes-2cm-rerank", "simple-cmaes-left-shoulder",
                                         "simple-cmaes-shortfall-long", "simple-cmaes-left-local",
-                                        "simple-cmaes-bottom-local"}
+                                        "simple-cmaes-bottom-local", "simple-cmaes-bottom-fixed"}
     assert "simple-fixedseed-left" in names and presets.load("simple-fixedseed-left").name == "simple-fixedseed-left"
+    assert "simple-cmaes-left-fixed" in names
     for name in names:
         p = presets.load(name)
         assert p.name == name and p.arms
@@ -314,8 +315,7 @@ def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     plan = reproduction_plan(None, "simple", None, None, 30, {}, presets.PRESET_DIR)
     assert {t: {m: (s["preset"].name, s["epochs"], s["set"]) for m, s in modes.items()} for t, modes in plan.items()} \
         == {"left": {"seeds": ("simple-cmaes-left-shoulder", 6, {}), "top30": ("simple-cmaes-left-local", 6, {})},
-            "bottom": {"seeds": ("simple-cmaes-shortfall-long", 16, {"explore_tot": 8.0}),
-                       "top30": ("simple-cmaes-bottom-local", 16, {})}}
+            "bottom": {"seeds": ("simple-cmaes-bottom-fixed", 16, {}), "top30": ("simple-cmaes-bottom-fixed", 16, {})}}
     assert all(float(m.explore_tot) == 8.0 for m in plan["bottom"]["seeds"]["sets"])
     assert len(plan["left"]["top30"]["sets"]) == 30
     ms = reproduction_plan(None, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)

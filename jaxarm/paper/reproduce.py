@@ -145,9 +145,9 @@ DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] 
     "simple": {
         # shoulder-only babbling, 6 epochs; (b) the local search around the left set
         "left": {"seeds": ("simple-cmaes-left-shoulder", None, {}), "top30": ("simple-cmaes-left-local", None, {})},
-        # single-group babbling (explore_tot 8) for 16 epochs; (b) the local search around the bottom set
-        "bottom": {"seeds": ("simple-cmaes-shortfall-long", 16, {"explore_tot": 8.0}),
-                   "top30": ("simple-cmaes-bottom-local", None, {})},
+        # single-group babbling (explore_tot 8) for 16 epochs: a local search on the current model (searched again
+        # after the 1 ms P-cell and muscle sub-step fixes), its best set (a) and its 30 best sets (b)
+        "bottom": {m: ("simple-cmaes-bottom-fixed", None, {}) for m in MODES},
     },
 }
 
