@@ -66,6 +66,20 @@ class DistanceMetrics(NamedTuple):
     distance_after_m: jnp.ndarray        # mean distance from first entry to the end, same unit as the input (NaN if never)
 
 
+def _distance_metrics_and_entry(dist, dt, radius_m):
+    """:class:`DistanceMetrics` and the first entry's sample index (T = never), which :func:`reach_metrics` also needs."""
+    n = dist.shape[-1]
+    inside = dist <= radius_m
+    success = jnp.any(inside, axis=-1)
+    entry = jnp.where(success, jnp.argmax(inside, axis=-1), n)          # n = "never"
+    return DistanceMetrics(
+        success=success,
+        first_entry_s=jnp.where(success, entry * dt, jnp.nan),
+        time_inside_s=jnp.sum(inside, axis=-1) * dt,
+        distance_after_m=_masked_mean(dist, (jnp.arange(n) >= entry[..., None]) & success[..., None]),
+    ), entry
+
+
 @jax.jit
 def distance_metrics(distance, dt, radius_m=SUCCESS_RADIUS_M) -> DistanceMetrics:
     """Entry, time inside and mean distance after entry of one trial from its hand–target distance alone.
@@ -79,16 +93,7 @@ def distance_metrics(distance, dt, radius_m=SUCCESS_RADIUS_M) -> DistanceMetrics
     dist = jnp.asarray(distance)
     if not jnp.issubdtype(dist.dtype, jnp.floating):
         dist = dist.astype(jnp.float32)
-    n = dist.shape[-1]
-    inside = dist <= radius_m
-    success = jnp.any(inside, axis=-1)
-    entry = jnp.where(success, jnp.argmax(inside, axis=-1), n)          # n = "never"
-    return DistanceMetrics(
-        success=success,
-        first_entry_s=jnp.where(success, entry * dt, jnp.nan),
-        time_inside_s=jnp.sum(inside, axis=-1) * dt,
-        distance_after_m=_masked_mean(dist, (jnp.arange(n) >= entry[..., None]) & success[..., None]),
-    )
+    return _distance_metrics_and_entry(dist, dt, radius_m)[0]
 
 
 @jax.jit
@@ -108,9 +113,8 @@ def reach_metrics(xy, target_xy, dt, radius_m=SUCCESS_RADIUS_M, onset_speed_m_s=
     n = xy.shape[-2]
     k = jnp.arange(n)
     dist = jnp.sqrt(jnp.sum((xy - jnp.asarray(target_xy, xy.dtype)) ** 2, axis=-1))
-    by_distance = distance_metrics(dist, dt, radius_m)
+    by_distance, entry = _distance_metrics_and_entry(dist, dt, radius_m)
     success = by_distance.success
-    entry = jnp.where(success, jnp.argmax(dist <= radius_m), n)          # n = "never"
 
     speed = interval_speeds(xy, dt)                              # interval i joins samples i and i+1
     moving = speed > onset_speed_m_s
