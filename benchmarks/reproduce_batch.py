@@ -38,9 +38,16 @@ def command(args, out: Path) -> list[str]:
             "--epoch-s", str(args.epoch_s), "--no-progress", "--out", str(out)]
 
 
-def timed(cmd: list[str], env: dict) -> float:
+def imported_from(env: dict, cwd: Path) -> Path:
+    """The folder ``jaxarm`` is imported from under ``env`` in ``cwd``."""
+    p = subprocess.run([sys.executable, "-c", "import jaxarm, os; print(os.path.dirname(jaxarm.__file__))"],
+                       env=env, cwd=cwd, capture_output=True, text=True, check=True)
+    return Path(p.stdout.strip()).resolve()
+
+
+def timed(cmd: list[str], env: dict, cwd: Path) -> float:
     t0 = time.perf_counter()
-    p = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    p = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if p.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{p.stderr[-3000:]}")
@@ -71,9 +78,17 @@ def main(argv=None) -> int:
             env_old = {**os.environ, "PYTHONPATH": str(base), "JAXARM_NATIVE_THREADS": str(args.baseline_threads)}
             env_new = {**os.environ, "PYTHONPATH": str(ROOT)}
             env_new.pop("JAXARM_NATIVE_THREADS", None)
+            # ``python -m`` puts the working directory first on sys.path, ahead of PYTHONPATH: run both commands
+            # from a neutral folder, and check that each imports the checkout it is meant to time.
+            neutral = tmp / "cwd"
+            neutral.mkdir()
+            for env, root in ((env_old, base), (env_new, ROOT)):
+                got = imported_from(env, neutral)
+                if got != (root / "jaxarm").resolve():
+                    raise RuntimeError(f"expected jaxarm from {root}, the command imports it from {got}")
             for r in range(args.repeats):
                 for name, env in (("sequential", env_old), ("one_batch", env_new)):
-                    wall = timed(command(args, tmp / f"{name}-{r}"), env)
+                    wall = timed(command(args, tmp / f"{name}-{r}"), env, neutral)
                     walls[name].append(wall)
                     if not args.json:
                         print(f"{name:10s} repeat {r}: {wall:7.1f} s", flush=True)

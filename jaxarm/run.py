@@ -38,17 +38,19 @@ TEST_KEY_FOLD = 7
 
 
 @functools.lru_cache(maxsize=16)
-def compiled(config: LoopConfig, mesh, record=None) -> tuple:
+def compiled(config: LoopConfig, mesh, record=None, at_once: int = 0) -> tuple:
     """``make_train(config, record)`` and its init / epoch / test / epoch_recorded (None unless recording epochs),
-    ``vmap``-ed over networks (keys, metaparameters and targets all per network) and sharded over ``mesh``; shared
-    by every batch of the same configuration."""
+    mapped over networks (keys, metaparameters and targets all per network; ``at_once`` networks of a device
+    together, :func:`jaxarm.parallel.map_networks`) and sharded over ``mesh``; shared by every batch of the same
+    configuration."""
     fns = make_train(config, record)
     b = parallel.BATCHED
-    init = parallel.shard(jax.vmap(fns.init), b, b, mesh)
-    epoch = parallel.shard(jax.vmap(fns.epoch), (b, b, b), b, mesh)
-    test = parallel.shard(jax.vmap(fns.test), (b, b, b, b), b, mesh)
+    each = lambda fn: parallel.map_networks(fn, at_once)   # noqa: E731
+    init = parallel.shard(each(fns.init), b, b, mesh)
+    epoch = parallel.shard(each(fns.epoch), (b, b, b), b, mesh)
+    test = parallel.shard(each(fns.test), (b, b, b, b), b, mesh)
     epoch_recorded = (None if fns.epoch_recorded is None else
-                      parallel.shard(jax.vmap(fns.epoch_recorded), (b, b, b), b, mesh))
+                      parallel.shard(each(fns.epoch_recorded), (b, b, b), b, mesh))
     return fns, init, epoch, test, epoch_recorded
 
 
@@ -120,7 +122,8 @@ class Batch:
             raise ValueError("a batch needs at least one network")
         self.mps, self.targets, self.description = mps, targets, description
         self.mesh = parallel.mesh() if mesh is None else mesh
-        self.n_padded = parallel.padded_size(self.n, self.mesh)
+        self.at_once = parallel.networks_at_once()
+        self.n_padded = parallel.padded_size(self.n, self.mesh, self.at_once)
         #: the RecordConfig (jaxarm.record) or None; its windows' capacities and memory bound; the epochs recorded
         #: by this invocation of :meth:`train` (1-based epoch -> host Recording of the real networks)
         self.record, self.record_capacity, self.record_memory, self.epoch_records = record, {}, None, {}
@@ -129,7 +132,8 @@ class Batch:
         self.learning_curve: dict[int, dict] = {}
         if record is not None:
             self._check_record()
-        self.fns, self.init_fn, self.epoch_fn, self.test_fn, self.epoch_rec_fn = compiled(config, self.mesh, record)
+        self.fns, self.init_fn, self.epoch_fn, self.test_fn, self.epoch_rec_fn = compiled(
+            config, self.mesh, record, self.at_once)
 
     def _check_record(self) -> None:
         """The windows' buffer capacities (spikes per network) and the memory bound, refused above the limit."""

@@ -80,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--strategy-param", default="",
                     help="evosax params of the strategy, 'name=value,...' (e.g. crossover_rate=0.2 for SimpleGA)")
     ap.add_argument("--eval-batch", type=int, default=0,
-                    help="candidates evaluated at once (0 = the whole population; smaller uses less memory)")
+                    help="candidates evaluated at once (0 = the whole population; smaller uses less memory); only where "
+                         "--networks-at-once is 0 (accelerators): CPUs already run networks in small groups")
     ap.add_argument("--reevaluate-seeds", type=int, default=0,
                     help="after the search, evaluate the top-k again with this many fresh seeds and rank by it")
     ap.add_argument("--reevaluate-train-s", type=float, default=None,

@@ -104,7 +104,8 @@ class EvolveConfig:
         seed_reduce: how a candidate's seeds combine: "mean" or "max" (worst case).
         strategy_params: ``((name, value), ...)`` overrides of the strategy's evosax params, e.g.
             ``(("crossover_rate", 0.2),)`` for SimpleGA (the authors' later GA used uniform crossover at 0.2).
-        eval_batch_size: candidates evaluated at once (each with all its seeds in one ``vmap``); the population
+        eval_batch_size: where networks are not already run in groups (``--networks-at-once 0``, the default on
+            accelerators): candidates evaluated at once (each with all its seeds in one ``vmap``); the population
             is run in batches of this size one after the other (``lax.map``). 0 = the whole population at once.
     """
 
@@ -355,28 +356,27 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig, 
     return _make_search_cached(fitness_fn, space, config, mesh)
 
 
-def sharded_map(fn: Callable, mesh, batch_size: int = 0) -> Callable:
-    """``fn`` mapped over the leading axis of its arguments: ``vmap`` (or ``lax.map`` in chunks of ``batch_size``),
-    split over ``mesh`` when one is given. Rows are padded to a multiple of the devices (with copies of the last
-    row) and the padding is dropped from the result."""
-    def local(*args):
-        if batch_size:
-            return lax.map(lambda a: fn(*a), args, batch_size=batch_size)
-        return jax.vmap(fn)(*args)
-
-    if mesh is None:
-        return local
-
+def sharded_map(fn: Callable, mesh, batch_size: int | None = None) -> Callable:
+    """``fn`` mapped over the leading axis of its arguments, split over ``mesh`` when one is given, each device's
+    share in groups of ``batch_size`` networks (default :func:`jaxarm.parallel.networks_at_once`; 0: one ``vmap``).
+    Rows are padded to a multiple of the devices times the group (with copies of the last row), so every layout
+    runs the same groups, and the padding is dropped from the result."""
     from jaxarm import parallel
 
-    everywhere = jax.sharding.NamedSharding(mesh, parallel.REPLICATED)
+    at_once = parallel.networks_at_once() if batch_size is None else batch_size
+    local = parallel.map_networks(fn, at_once)
 
     def mapped(*args):
         n = jax.tree.leaves(args)[0].shape[0]
-        n_pad = parallel.padded_size(n, mesh)
+        group = max(1, at_once) * (1 if mesh is None else mesh.size)
+        n_pad = -(-n // group) * group
         pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], n_pad - n, axis=0)]) if n_pad > n else x  # noqa: E731
+        args = jax.tree.map(pad, args)
+        if mesh is None:
+            return jax.tree.map(lambda x: x[:n], local(*args))
+        everywhere = jax.sharding.NamedSharding(mesh, parallel.REPLICATED)
         out = jax.shard_map(local, mesh=mesh, in_specs=parallel.BATCHED, out_specs=parallel.BATCHED,
-                            check_vma=False)(*jax.tree.map(pad, args))
+                            check_vma=False)(*args)
         # gathered whole onto every device: what follows (means over seeds, ...) is computed whole, not in parts
         return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, everywhere)[:n], out)
 
@@ -444,7 +444,10 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig,
         # serves all P * S networks with one spike list (jaxarm.network.synapses).
         flat_keys = keys.reshape((P * S,) + keys.shape[2:])
         flat_mps = jax.tree_util.tree_map(lambda x: jnp.repeat(x, S, axis=0), mps)
-        batch = 0 if config.eval_batch_size in (0, P) else config.eval_batch_size * S
+        # groups of networks_at_once on CPUs; eval_batch_size bounds the memory where that is 0 (accelerators)
+        from jaxarm import parallel
+
+        batch = None if parallel.networks_at_once() or config.eval_batch_size in (0, P) else config.eval_batch_size * S
         f, metrics = sharded_map(evaluate_one, mesh, batch)(flat_keys, flat_mps)
         f, metrics = f.reshape(P, S), {m: v.reshape(P, S) for m, v in metrics.items()}   # (P, S), {name: (P, S)}
         fitness, bad = _combine_seeds(f, config.seed_reduce)
