@@ -85,7 +85,9 @@ def _start_devices(name: str, argv: list[str]) -> int:
     from jaxarm import parallel
     from jaxarm.config.validate import ConfigError
 
-    ap = argparse.ArgumentParser(add_help=False)
+    # no abbreviations: this parser sees the command's other options too, and `--networks 30` is not
+    # `--networks-at-once 30`
+    ap = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
     parallel.add_arguments(ap)
     try:
         known, _ = ap.parse_known_args(argv)

@@ -86,6 +86,19 @@ def test_networks_at_once_groups_and_pads_a_devices_share():
         parallel.start(networks_at_once=-1)
 
 
+def test_networks_is_not_read_as_networks_at_once(monkeypatch):
+    """The command line sets up the devices from its scale-out options before the command parses the rest; `--networks
+    30` must not reach that parser as an abbreviation of `--networks-at-once` (it did: every `jaxarm train --networks N`
+    ran its networks N at a time and padded the batch to N per device)."""
+    from jaxarm import cli, parallel
+
+    seen = {}
+    monkeypatch.setattr(parallel, "start", lambda *a: seen.update(args=a))
+    assert cli._start_devices("train", ["--networks", "30", "--devices", "1", "--out", "x"]) == 0
+    assert seen["args"] == (1, None, None, None, None)
+    assert cli._start_devices("train", ["--networks-at-once", "4"]) == 0 and seen["args"][-1] == 4
+
+
 @pytest.mark.slow
 def test_a_batch_of_30_trains_to_the_same_bits_on_one_and_two_devices():
     """30 networks, 15 s of training: on one device (30 at once before the fix) and on two (15 each) network 14
