@@ -84,7 +84,8 @@ _networks_at_once: int | None = None
 def networks_at_once() -> int:
     """Networks each device steps together (0: its whole share). ``--networks-at-once`` sets it; by default
     :data:`CPU_NETWORKS_AT_ONCE` on CPUs and the whole share on accelerators, whose parallelism is across networks.
-    Results do not depend on it."""
+    The group's size is part of the compiled program, so another value may change results in the last bits; with one
+    value, the layout (devices, processes) does not."""
     if _networks_at_once is not None:
         return _networks_at_once
     return CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
@@ -156,7 +157,7 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                    help=f"networks each device steps together, the rest of its share after them (default: "
                         f"{CPU_NETWORKS_AT_ONCE} on CPUs, where a small group stays in the caches; all on accelerators; "
-                        "0 = all); results do not depend on it")
+                        "0 = all); the same value gives the same bits on every layout")
     g.add_argument("--coordinator", default=None, metavar="HOST:PORT",
                    help="several processes (machines): process 0's address; give every process the same command with "
                         "its own --process-id (not needed under SLURM or Open MPI, which JAX detects)")

@@ -169,8 +169,10 @@ class Batch:
         return net.to_dict(changed_only=True) | {"kernel": kernel}
 
     def layout(self) -> dict:
-        """How the batch is laid out over devices (not part of its identity: results do not depend on it)."""
-        return {"padded_networks": self.n_padded, "devices": self.mesh.size, "processes": jax.process_count()}
+        """How the batch is laid out over devices (not part of its identity: with one group size, results do not
+        depend on it)."""
+        return {"padded_networks": self.n_padded, "devices": self.mesh.size, "processes": jax.process_count(),
+                "networks_at_once": self.at_once}
 
     def check_resumable(self, saved: dict) -> None:
         """Refuse to resume a checkpoint written by a different run (a folder from before the kernel was recorded
