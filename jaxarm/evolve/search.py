@@ -447,7 +447,8 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig,
         # groups of networks_at_once on CPUs; eval_batch_size bounds the memory where that is 0 (accelerators)
         from jaxarm import parallel
 
-        batch = None if parallel.networks_at_once() or config.eval_batch_size in (0, P) else config.eval_batch_size * S
+        whole = 0 if config.eval_batch_size in (0, P) else config.eval_batch_size * S
+        batch = parallel.networks_at_once() or whole
         f, metrics = sharded_map(evaluate_one, mesh, batch)(flat_keys, flat_mps)
         f, metrics = f.reshape(P, S), {m: v.reshape(P, S) for m, v in metrics.items()}   # (P, S), {name: (P, S)}
         fitness, bad = _combine_seeds(f, config.seed_reduce)
