@@ -19,6 +19,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                "search the metaparameters with an evosax strategy (CMA-ES, GA, ...) in compiled, checkpointed chunks"),
     "reproduce": ("jaxarm.paper.reproduce:reproduce_main",
                   "the paper's success table: a preset's best set x 30 seeds and its top 30 sets, per target"),
+    "rerank": ("jaxarm.paper.rerank:rerank_main",
+               "rank a pool of metaparameter sets (presets, earlier rankings) by how often they reach, on fresh seeds"),
     "figures": ("jaxarm.viz.figures:main",
                 "the paper's figures (raster, rates, reach, jerk, muscles, robot) from a run folder, PNG + data"),
     "video": ("jaxarm.viz.video:main", "an MP4 of one network reaching: the arm, the target, a scrolling raster"),
@@ -74,7 +76,7 @@ def _raised_in_mujoco(e: BaseException) -> bool:
 
 
 #: Commands that split their batch over every device of every process (``--devices``, ``--coordinator``, ...).
-SCALE_OUT_COMMANDS = ("train", "test", "evolve", "reproduce")
+SCALE_OUT_COMMANDS = ("train", "test", "evolve", "reproduce", "rerank")
 
 
 def _start_devices(name: str, argv: list[str]) -> int:

@@ -272,11 +272,23 @@ def test_reevaluation_ranks_the_top_k_again(tmp_path):
     assert int(result.state.generation) == 6
 
 
+def test_candidates_per_call_fill_whole_groups():
+    from jaxarm import parallel
+    from jaxarm.evolve.search import candidates_per_call
+
+    group = parallel.networks_at_once()
+    for seeds in (1, 3, 4, 16, 24):
+        k = candidates_per_call(seeds)
+        assert (k * seeds) % max(1, group) == 0                                   # whole groups ...
+        assert all((j * seeds) % max(1, group) for j in range(1, k))             # ... with the fewest candidates
+
+
 @pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 def test_killed_reevaluation_resumes_where_it_stopped(tmp_path):
-    """Re-evaluation goes one candidate at a time and saves each result: with the file cut back to 4 of 10 (a kill
-    after the 4th), a rerun evaluates only the other 6 and writes the same top_k.json; the one-at-a-time results
-    equal one batched call over all candidates (to float32 rounding: the two compile separately)."""
+    """Re-evaluation saves each call's results: with the file cut back to 4 of 10 (a kill after the 4th), a rerun
+    evaluates only the other 6 and writes the same top_k.json; the saved results equal one batched call over all
+    candidates (to float32 rounding: the two compile separately), and a candidate's result is the same whatever
+    else its call holds."""
     config = EvolveConfig(strategy=CHEAP, population_size=8, generations=3, chunk_size=3, top_k=10)
     fitness = fit.make_quadratic(0.05)
     result = run_search(fitness, SMALL, config, tmp_path, reevaluate_seeds=3, log=lambda _: None)
@@ -288,6 +300,10 @@ def test_killed_reevaluation_resumes_where_it_stopped(tmp_path):
     key = jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM)
     batched = make_reevaluate(fitness, SMALL, 3)(key, units)
     np.testing.assert_allclose([c["fitness"] for c in saved["candidates"]], batched.fitness, rtol=1e-5, atol=1e-7)
+    # a candidate's result does not depend on the others evaluated in the same call
+    for rows in (slice(0, 1), slice(3, 5)):
+        part = make_reevaluate(fitness, SMALL, 3)(key, units[rows])
+        np.testing.assert_array_equal(part.fitness_per_seed, np.asarray(batched.fitness_per_seed)[rows])
 
     # cut back in the format of files written before each result carried its unit (matched by position in "units")
     old_format = [{k: v for k, v in c.items() if k != "unit"} for c in saved["candidates"][:4]]

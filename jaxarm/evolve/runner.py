@@ -32,8 +32,8 @@ from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
 from jaxarm.evolve.checkpoint import SearchCheckpointer
 from jaxarm.evolve.fitness import Fitness
-from jaxarm.evolve.search import (RERANK_STREAM, EvolveConfig, Reevaluation, SearchState, make_reevaluate,
-                                  make_search, with_generations)
+from jaxarm.evolve.search import (RERANK_STREAM, EvolveConfig, Reevaluation, SearchState, candidates_per_call,
+                                  make_reevaluate, make_search, with_generations)
 from jaxarm.evolve.space import SearchSpace
 
 HISTORY_FILE = "history.json"
@@ -259,12 +259,13 @@ def run_search(fitness: Fitness | Callable, space: SearchSpace, config: EvolveCo
 
 
 def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict | None = None, mesh=None):
-    """Re-evaluate the archive one candidate at a time (one compiled call each, the same fresh keys for all), with
-    a progress line per candidate and each result saved to ``reevaluation.json`` as it comes.
+    """Re-evaluate the archive in calls of :func:`candidates_per_call` candidates (their seeds fill whole groups on
+    every device; the same fresh keys for all), with a progress line per candidate and each call's results saved to
+    ``reevaluation.json`` as they come.
 
     Every candidate is evaluated with the same keys, so a result depends on the candidate alone: saved results are
-    reused for every archive member they were computed for. A killed re-evaluation resumes at the first candidate
-    not yet done, and after a search is extended only the candidates new to the archive are evaluated. A file for
+    reused for every archive member they were computed for. A killed re-evaluation resumes with the candidates not yet
+    done, and after a search is extended only the candidates new to the archive are evaluated. A file for
     other seeds, another training length or other targets is ignored."""
     fitness = fitness if isinstance(fitness, Fitness) else Fitness(fitness)
     filled = np.isfinite(np.asarray(state.archive.fitness))
@@ -272,6 +273,7 @@ def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict
     if units.shape[0] == 0:
         return None
     reevaluate = make_reevaluate(fitness.fn, space, seeds, config.seed_reduce, mesh)
+    per_call = min(candidates_per_call(seeds, mesh), units.shape[0])
     key = np.asarray(jax.random.fold_in(jax.random.PRNGKey(config.seed), RERANK_STREAM))
     unit_rows = [[float(x) for x in u] for u in units]
     identity = {"seeds": seeds, "seed_reduce": config.seed_reduce,
@@ -298,19 +300,23 @@ def _reevaluate(state, space, config, fitness, seeds, log, out: Path, meta: dict
             _write_json(path, {**identity, "units": unit_rows, "candidates": [c for c in done if c is not None]})
 
     t_all = time.perf_counter()
-    for i in range(units.shape[0]):
-        if done[i] is not None:
-            continue
+    todo = [i for i in range(units.shape[0]) if done[i] is None]
+    for start in range(0, len(todo), per_call):
+        rows = todo[start:start + per_call]
+        # the last call is padded with copies to the same shape (no second compile; the copies are dropped)
+        chunk = units[rows + [rows[-1]] * (per_call - len(rows))]
         t0 = time.perf_counter()
-        args = (key, units[i:i + 1]) if mesh is None else parallel.put((key, units[i:i + 1]), parallel.REPLICATED, mesh)
+        args = (key, chunk) if mesh is None else parallel.put((key, chunk), parallel.REPLICATED, mesh)
         r = parallel.host(jax.block_until_ready(reevaluate(*args)))
-        done[i] = {"unit": unit_rows[i], "fitness": _num(r.fitness[0]),
-                   "fitness_per_seed": [_num(x) for x in r.fitness_per_seed[0]],
-                   "metrics": {m: _num(v[0]) for m, v in r.metrics.items()}}
+        for j, i in enumerate(rows):
+            done[i] = {"unit": unit_rows[i], "fitness": _num(r.fitness[j]),
+                       "fitness_per_seed": [_num(x) for x in r.fitness_per_seed[j]],
+                       "metrics": {m: _num(v[j]) for m, v in r.metrics.items()}}
         save()
-        log(f"re-evaluated {i + 1}/{units.shape[0]}: fitness {_fmt(done[i]['fitness'])} over {seeds} fresh seeds "
-            f"(search fitness {_fmt(float(np.asarray(state.archive.fitness)[filled][i]))}) | "
-            f"{time.perf_counter() - t0:.1f} s")
+        for i in rows:
+            log(f"re-evaluated {i + 1}/{units.shape[0]}: fitness {_fmt(done[i]['fitness'])} over {seeds} fresh "
+                f"seeds (search fitness {_fmt(float(np.asarray(state.archive.fitness)[filled][i]))}) | "
+                f"{time.perf_counter() - t0:.1f} s for {len(rows)} in one call")
     save()
     nan = float("nan")
     as_array = lambda xs: np.asarray([nan if x is None else x for x in xs], np.float32)   # noqa: E731

@@ -36,6 +36,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import math
 import time
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
@@ -392,6 +393,14 @@ def _on_mesh(tree, mesh):
     return parallel.put(parallel.host(tree), parallel.REPLICATED, mesh)
 
 
+def candidates_per_call(seeds: int, mesh=None) -> int:
+    """The fewest candidates whose ``seeds`` evaluations each fill whole groups on every device (no padding)."""
+    from jaxarm import parallel
+
+    group = max(1, parallel.networks_at_once()) * (1 if mesh is None else mesh.size)
+    return group // math.gcd(group, seeds)
+
+
 def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig, mesh=None) -> Search:
     from evosax.algorithms.population_based.base import PopulationBasedAlgorithm
 
@@ -545,8 +554,10 @@ class Reevaluation(NamedTuple):
 def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_reduce: str = "mean",
                     mesh=None) -> Callable:
     """``reevaluate(key, units (K, n_dims)) -> Reevaluation``: each candidate with the same ``seeds`` fresh keys
-    (split from ``key``), one candidate at a time (``lax.map``) with its seeds in one ``vmap`` (split over ``mesh``
-    when given).
+    (split from ``key``), the K x seeds evaluations in one :func:`sharded_map` (over ``mesh`` when given, in groups
+    of :func:`jaxarm.parallel.networks_at_once`). A candidate's result depends on it alone, not on the others of the
+    call: every evaluation runs in a group of the same size whatever the call holds (:func:`candidates_per_call`
+    gives the K that fills whole groups).
 
     The search ranks candidates by noisy fitness, so its best are partly its luckiest; evaluating the top-k again
     with new seeds (and, for the reaching task, the full training length) gives the final ranking.
@@ -557,14 +568,13 @@ def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_r
 
     @jax.jit
     def reevaluate(key, units) -> Reevaluation:
-        keys = jax.random.split(raw_key(key), seeds)
-
-        def one(u):
-            mps = jax.tree.map(lambda x: jnp.broadcast_to(x, (seeds,) + jnp.shape(x)), space.to_metaparams(u))
-            return sharded_map(evaluate_one, mesh)(keys, mps)
-
-        f, metrics = lax.map(one, jnp.asarray(units, jnp.float32))   # (K, S), {name: (K, S)}
+        units = jnp.asarray(units, jnp.float32)
+        k = units.shape[0]
+        keys = jnp.tile(jax.random.split(raw_key(key), seeds), (k, 1))   # candidate-major: (K * seeds, 2)
+        mps = jax.tree.map(lambda x: jnp.repeat(x, seeds, axis=0), space.to_metaparams(units))
+        f, metrics = sharded_map(evaluate_one, mesh)(keys, mps)
+        f = f.reshape(k, seeds)
         fitness, _ = _combine_seeds(f, seed_reduce)
-        return Reevaluation(fitness, f, {m: jnp.mean(v, axis=1) for m, v in metrics.items()})
+        return Reevaluation(fitness, f, {m: jnp.mean(v.reshape(k, seeds), axis=1) for m, v in metrics.items()})
 
     return reevaluate

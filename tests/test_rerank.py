@@ -1,0 +1,104 @@
+"""`jaxarm rerank`: a pool of sets trained on fresh seeds and ranked by how often they reach.
+
+Kept fast like test_reproduce.py: the simple arm, one epoch of 0.2 s and a 0.2 s test (no network reaches in that
+time, so the checks are on the closest approach, which differs between every set and seed).
+"""
+import json
+
+import numpy as np
+import pytest
+
+from jaxarm.cli import main
+from jaxarm.config.validate import ConfigError
+from jaxarm.learning.metaparams import ORIGINAL
+from jaxarm.paper import presets
+from jaxarm.paper.rerank import RANKING_FILE, preset_from_ranking, rank
+
+TINY = ["--arm", "simple", "--target", "left", "--epochs", "1", "--epoch-s", "0.2", "--test-s", "0.2",
+        "--no-progress"]
+OTHER = {**ORIGINAL, "learn_rate": 0.05, "em_noise_rate_test_hz": 300.0}
+
+
+@pytest.fixture(scope="module")
+def preset_dir(tmp_path_factory):
+    """A preset whose best set is also its top[0] (kept once in the pool) and a second set."""
+    d = tmp_path_factory.mktemp("presets")
+    presets.save(presets.Preset(name="two", description="", arms=("simple",), best=ORIGINAL,
+                                top=({"metaparams": ORIGINAL}, {"metaparams": OTHER})), d)
+    return d
+
+
+@pytest.fixture(scope="module")
+def first(preset_dir, tmp_path_factory):
+    out = tmp_path_factory.mktemp("rerank") / "first"
+    assert main(["rerank", *TINY, "--pool", "two", "--preset-dir", str(preset_dir), "--seeds", "2",
+                 "--first-seed", "500", "--out", str(out)]) == 0
+    return out
+
+
+def test_each_sets_results_are_a_separate_train_of_that_set(first, tmp_path):
+    """The ranking's per-seed results equal `jaxarm train` of each set alone with the same seeds (one batch of
+    sets x seeds computes every network as a run of that network alone)."""
+    table = json.loads((first / RANKING_FILE).read_text())
+    assert len(table["sets"]) == 2 and table["protocol"]["seeds"] == [500, 501]
+    by_source = {r["source"]: r for r in table["sets"]}
+    assert set(by_source) == {"two best", "two top[1]"}
+    for source, mp in (("two best", ORIGINAL), ("two top[1]", OTHER)):
+        out = tmp_path / source.replace(" ", "_")
+        args = [f"{k}={v}" for k, v in mp.items() if k != "epochs"]
+        assert main(["train", "--arm", "simple", "--target", "left", "--networks", "2", "--seed", "500",
+                     "--epochs", "1", "--epoch-s", "0.2", "--test-s", "0.2", "--no-progress", "--out", str(out),
+                     *sum((["--set", a] for a in args), [])]) == 0
+        nets = json.loads((out / "results.json").read_text())["networks"]
+        row = by_source[source]
+        (run,) = row["runs"]
+        assert run["seeds"] == [500, 501]
+        assert run["success"] == [n["success"] for n in nets]
+        assert run["min_distance_m"] == [n["min_distance_m"] for n in nets]
+        assert row["n"] == 2 and row["mean_min_distance_m"] == pytest.approx(np.mean(run["min_distance_m"]), abs=1e-5)
+    # ranked by closest approach when no set reaches
+    d = [r["mean_min_distance_m"] for r in table["sets"]]
+    assert d == sorted(d) and [r["rank"] for r in table["sets"]] == [1, 2]
+
+
+def test_a_second_stage_adds_seeds_and_refuses_reused_ones(first, preset_dir, tmp_path, capsys):
+    second = tmp_path / "second"
+    assert main(["rerank", *TINY, "--pool", str(first), "--best", "1", "--seeds", "1", "--first-seed", "501",
+                 "--out", str(second)]) == 2
+    assert "--first-seed = 501: seeds 501..501 already tested" in capsys.readouterr().err
+    assert main(["rerank", *TINY, "--pool", str(first), "--best", "1", "--seeds", "1", "--first-seed", "502",
+                 "--out", str(second), "--make-preset", "two-ranked", "--preset-dir", str(preset_dir)]) == 0
+    before = json.loads((first / RANKING_FILE).read_text())["sets"][0]
+    (row,) = json.loads((second / RANKING_FILE).read_text())["sets"]
+    assert row["metaparams"] == before["metaparams"] and row["source"] == before["source"]
+    assert row["runs"][0] == before["runs"][0] and row["runs"][1]["seeds"] == [502] and row["n"] == 3
+    p = presets.load("two-ranked", preset_dir)
+    assert p.best == presets.check_metaparams(row["metaparams"], "x")
+    assert p.targets == ("left",) and p.protocol["epochs"] == 1 and len(p.top) == 1
+    assert p.provenance["source"] == "jaxarm rerank" and p.provenance["command"].startswith("jaxarm rerank")
+    assert p.provenance["pool"][0]["ranking"] == str(first)
+    assert preset_from_ranking(second, "again").best == p.best
+
+
+def test_rank_orders_by_rate_over_every_run_then_closest_approach():
+    def s(name, *runs):
+        return {"metaparams": {}, "source": name,
+                "runs": [{"seeds": list(range(len(ok))), "success": ok, "min_distance_m": d} for ok, d in runs]}
+
+    ranked = rank([s("a", ([True, False], [0.01, 0.1])),                                # 1/2
+                   s("b", ([True, True], [0.03, 0.03]), ([False, True], [0.1, 0.02])),  # 3/4, far
+                   s("c", ([True, True, True, False], [0.01, 0.01, 0.01, 0.05])),      # 3/4, closer
+                   s("d", ([True, False], [0.01, 0.1]))])                               # 1/2, tie with a: pool order
+    assert [r["source"] for r in ranked] == ["c", "b", "a", "d"]
+    assert [(r["successes"], r["n"]) for r in ranked] == [(3, 4), (3, 4), (1, 2), (1, 2)]
+    assert ranked[1]["mean_min_distance_m"] == pytest.approx(0.045)
+
+
+def test_bad_input_is_one_clear_line(tmp_path, capsys):
+    assert main(["rerank", *TINY, "--pool", "no-such-preset", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("jaxarm rerank: --pool 'no-such-preset': neither") and "\n" not in err
+    assert main(["rerank", *TINY, "--pool", "original", "--seeds", "0", "--out", str(tmp_path / "x")]) == 2
+    assert "--seeds = 0: must be in [1, 1024]" in capsys.readouterr().err
+    with pytest.raises(ConfigError, match="ranking.json not found"):
+        preset_from_ranking(tmp_path, "x")
