@@ -55,6 +55,7 @@ def test_each_sets_results_are_a_separate_train_of_that_set(first, tmp_path):
         assert run["seeds"] == [500, 501]
         assert run["success"] == [n["success"] for n in nets]
         assert run["min_distance_m"] == [n["min_distance_m"] for n in nets]
+        assert run["distance_after_m"] == [n["distance_after_m"] for n in nets]
         assert row["n"] == 2 and row["mean_min_distance_m"] == pytest.approx(np.mean(run["min_distance_m"]), abs=1e-5)
     # ranked by closest approach when no set reaches
     d = [r["mean_min_distance_m"] for r in table["sets"]]
@@ -92,6 +93,17 @@ def test_rank_orders_by_rate_over_every_run_then_closest_approach():
     assert [r["source"] for r in ranked] == ["c", "b", "a", "d"]
     assert [(r["successes"], r["n"]) for r in ranked] == [(3, 4), (3, 4), (1, 2), (1, 2)]
     assert ranked[1]["mean_min_distance_m"] == pytest.approx(0.045)
+    # by staying: among equal rates, the smaller mean distance after entry (over the entered networks) first
+    def t(name, after):
+        return {"metaparams": {}, "source": name, "runs": [{"seeds": [0, 1], "success": [True, True],
+                                                            "min_distance_m": [0.01, 0.01], "distance_after_m": after}]}
+
+    stay = rank([t("far", [0.06, 0.05]), t("near", [0.03, 0.04]), t("tie-with-near", [0.02, 0.05])],
+                by="stay")
+    assert [r["source"] for r in stay] == ["near", "tie-with-near", "far"]
+    assert stay[0]["mean_distance_after_m"] == pytest.approx(0.035)
+    with pytest.raises(ConfigError, match="--rank-by = 'x'"):
+        rank([], by="x")
 
 
 def test_bad_input_is_one_clear_line(tmp_path, capsys):

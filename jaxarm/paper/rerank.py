@@ -11,7 +11,8 @@ of presets, or the best sets of an earlier ranking) with the same ``--seeds`` fr
 (``PRNGKey(first_seed + j)``, default from 1000, apart from the reproduction's keys 0..29) for the protocol
 ``jaxarm reproduce`` runs (``--epochs`` of ``--epoch-s``, the 1 s test, success = the hand enters the 4 cm circle),
 all in one batch over every device, and ranks the sets by their success rate over every seed they were tested with
-(this run's and, for a pool from an earlier ranking, that ranking's), then by the mean closest approach. The
+(this run's and, for a pool from an earlier ranking, that ranking's), then by the mean closest approach
+(``--rank-by stay``: first by the mean distance after entry, the paper's measure of a reach that stays). The
 reproduction's statistics are then measured on other keys than the ones that chose the sets.
 
 Outputs in ``--out``: ``ranking.json`` (the pool's sources, protocol, seeds, command, timing and every set with its
@@ -80,29 +81,50 @@ def pool_from(sources: list[str], best: int | None, preset_dir: Path) -> tuple[l
     return list(sets.values()), described
 
 
-def rank(sets: list[dict]) -> list[dict]:
-    """The sets ordered by success rate over all their runs (highest first), then by the mean closest approach
-    (smallest first), then by pool order; each with ``rank``, ``successes``, ``n``, ``rate``,
-    ``mean_min_distance_m``."""
+#: How a ranking orders sets of equal success rate: ``reach`` by the mean closest approach; ``stay`` by the mean
+#: distance to the target centre after first entry over the networks that entered (the paper's §3.2 measure: reaches
+#: that stop near the target rank first), then the closest approach.
+RANK_BY = ("reach", "stay")
+
+
+def rank(sets: list[dict], by: str = "reach") -> list[dict]:
+    """The sets ordered by success rate over all their runs (highest first), then (``by``, :data:`RANK_BY`) by the
+    mean closest approach, or by the mean distance after entry and then the closest approach (smallest first),
+    then by pool order; each with ``rank``, ``successes``, ``n``, ``rate``, ``mean_min_distance_m``,
+    ``mean_distance_after_m``."""
+    if by not in RANK_BY:
+        raise ConfigError(f"--rank-by = {by!r}: must be one of {', '.join(RANK_BY)}")
+    inf = float("inf")
     rows = []
     for i, s in enumerate(sets):
         success = [x for r in s["runs"] for x in r["success"]]
         dist = [x for r in s["runs"] for x in r["min_distance_m"]]
+        after = [x for r in s["runs"] for x in r.get("distance_after_m", []) if x is not None]
         rows.append({**s, "successes": int(sum(success)), "n": len(success),
                      "rate": float(np.mean(success)) if success else 0.0,
-                     "mean_min_distance_m": round(float(np.mean(dist)), 5) if dist else None, "_order": i})
-    rows.sort(key=lambda r: (-r["rate"], r["mean_min_distance_m"] if r["mean_min_distance_m"] is not None
-                             else float("inf"), r["_order"]))
+                     "mean_min_distance_m": round(float(np.mean(dist)), 5) if dist else None,
+                     "mean_distance_after_m": round(float(np.mean(after)), 5) if after else None, "_order": i})
+
+    def key(r):
+        closest = r["mean_min_distance_m"] if r["mean_min_distance_m"] is not None else inf
+        if by == "stay":
+            after = r["mean_distance_after_m"] if r["mean_distance_after_m"] is not None else inf
+            return -r["rate"], after, closest, r["_order"]
+        return -r["rate"], closest, r["_order"]
+
+    rows.sort(key=key)
     return [{"rank": i + 1, **{k: v for k, v in r.items() if k != "_order"}} for i, r in enumerate(rows)]
 
 
 def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
            first_seed: int = DEFAULT_FIRST_SEED, best: int | None = None, epochs: int | None = None,
+           rank_by: str = "reach",
            epoch_s: float = 30.0, test_s: float = 1.0, backend: str = "fast", progress: bool = True,
            command: str | None = None, stop_after: int | None = None, log=print,
            preset_dir: Path = preset_lib.PRESET_DIR) -> dict | None:
-    """Train every set of the pool with ``seeds`` network keys ``first_seed ..``, test, rank; write and return
-    ranking.json's content (None when ``stop_after`` stopped the training early: run again to resume)."""
+    """Train every set of the pool with ``seeds`` network keys ``first_seed ..``, test, rank (``rank_by``,
+    :data:`RANK_BY`); write and return ranking.json's content (None when ``stop_after`` stopped the training early: run again to resume)."""
+    from jaxarm.analysis.reach import distance_metrics
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.paper.reproduce import _epochs_of
@@ -117,6 +139,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
         raise ConfigError(f"--best = {best}: must be >= 1")
     if epochs is not None and not 1 <= epochs <= 1000:
         raise ConfigError(f"--epochs = {epochs}: must be in [1, 1000]")
+    rank([], rank_by)   # checks rank_by before any training
     sets, sources = pool_from(pool, best, preset_dir)
     new_seeds = list(range(first_seed, first_seed + seeds))
     used = sorted({s for st in sets for r in st["earlier"] for s in r["seeds"]} & set(new_seeds))
@@ -145,12 +168,17 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
     result = batch.test(carry.trained)
     success = np.asarray(result.success, bool).reshape(len(sets), seeds)
     closest = np.asarray(result.min_distance_m, np.float64).reshape(len(sets), seeds)
-    for s, ok, d in zip(sets, success, closest):
+    after = np.asarray(distance_metrics(result.distance_m, config.task.update_interval_s,
+                                        config.task.success_radius_m).distance_after_m,
+                       np.float64).reshape(len(sets), seeds)
+    for s, ok, d, a in zip(sets, success, closest, after):
         s["runs"] = s.pop("earlier") + [{"seeds": new_seeds, "success": [bool(x) for x in ok],
-                                         "min_distance_m": [round(float(x), 5) for x in d]}]
-    ranked = rank(sets)
+                                         "min_distance_m": [round(float(x), 5) for x in d],
+                                         "distance_after_m": [None if np.isnan(x) else round(float(x), 5)
+                                                              for x in a]}]
+    ranked = rank(sets, rank_by)
     table = {
-        "arm": arm, "target": target, "command": command, "pool": sources,
+        "arm": arm, "target": target, "command": command, "pool": sources, "rank_by": rank_by,
         "protocol": {"epochs": n_epochs, "epoch_s": epoch_s, "test_s": test_s, "seeds": new_seeds,
                      "success_radius_m": config.task.success_radius_m, "backend": backend,
                      "keys": "network j of every set uses PRNGKey(seed j); a set's rate counts every run it had",
@@ -174,10 +202,12 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
 def format_ranking(table: dict, rows: int = 40) -> str:
     seeds = table["protocol"]["seeds"]
     lines = [f"{table['arm']} arm, {table['target']} target, {table['protocol']['epochs']} epochs; this run's seeds "
-             f"{seeds[0]}..{seeds[-1]}", "rank  reached      rate  mean closest (cm)  source"]
+             f"{seeds[0]}..{seeds[-1]}; ranked by {table.get('rank_by', 'reach')}",
+             "rank  reached      rate  mean closest (cm)  after entry (cm)  source"]
+    cm = lambda x: "-" if x is None else f"{100 * x:.2f}"   # noqa: E731
     for r in table["sets"][:rows]:
-        dist = "-" if r["mean_min_distance_m"] is None else f"{100 * r['mean_min_distance_m']:.2f}"
-        lines.append(f"{r['rank']:>4}  {r['successes']:>3}/{r['n']:<5}  {r['rate']:>5.2f}  {dist:>17}  {r['source']}")
+        lines.append(f"{r['rank']:>4}  {r['successes']:>3}/{r['n']:<5}  {r['rate']:>5.2f}  "
+                     f"{cm(r['mean_min_distance_m']):>17}  {cm(r.get('mean_distance_after_m')):>16}  {r['source']}")
     if len(table["sets"]) > rows:
         lines.append(f"... {len(table['sets']) - rows} more in {RANKING_FILE}")
     return "\n".join(lines)
@@ -222,6 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "from the reproduction's seeds)")
     ap.add_argument("--epochs", type=int, default=None,
                     help="training epochs (default: the sets' shared `epochs` metaparameter)")
+    ap.add_argument("--rank-by", choices=RANK_BY, default="reach",
+                    help="sets of equal success rate ordered by the mean closest approach (reach, default) or by the "
+                         "mean distance after entry, the paper's measure of staying (stay)")
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
     ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
@@ -242,7 +275,7 @@ def rerank_main(argv: list[str] | None = None) -> int:
         parallel.start_from_arguments(args)
         pool = [p.strip() for p in args.pool.split(",") if p.strip()]
         table = rerank(args.arm, args.target, pool, args.out, seeds=args.seeds, first_seed=args.first_seed,
-                       best=args.best, epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s,
+                       best=args.best, epochs=args.epochs, rank_by=args.rank_by, epoch_s=args.epoch_s, test_s=args.test_s,
                        backend=args.backend, progress=not args.no_progress, preset_dir=args.preset_dir,
                        command=shlex.join(["jaxarm", "rerank", *argv]))
         if table is not None and args.make_preset and parallel.is_main_process():
