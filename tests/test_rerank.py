@@ -67,8 +67,14 @@ def test_a_second_stage_adds_seeds_and_refuses_reused_ones(first, preset_dir, tm
     assert main(["rerank", *TINY, "--pool", str(first), "--best", "1", "--seeds", "1", "--first-seed", "501",
                  "--out", str(second)]) == 2
     assert "--first-seed = 501: seeds 501..501 already tested" in capsys.readouterr().err
-    assert main(["rerank", *TINY, "--pool", str(first), "--best", "1", "--seeds", "1", "--first-seed", "502",
-                 "--out", str(second), "--make-preset", "two-ranked", "--preset-dir", str(preset_dir)]) == 0
+    command = ["rerank", *TINY, "--pool", str(first), "--best", "1", "--seeds", "1", "--first-seed", "502",
+               "--out", str(second)]
+    assert main(command) == 0
+    ranked = (second / RANKING_FILE).read_text()
+    capsys.readouterr()
+    # the same command again with --make-preset reuses the finished ranking (nothing trained, the file unchanged)
+    assert main(command + ["--make-preset", "two-ranked", "--preset-dir", str(preset_dir)]) == 0
+    assert "finished earlier, reused" in capsys.readouterr().out and (second / RANKING_FILE).read_text() == ranked
     before = json.loads((first / RANKING_FILE).read_text())["sets"][0]
     (row,) = json.loads((second / RANKING_FILE).read_text())["sets"]
     assert row["metaparams"] == before["metaparams"] and row["source"] == before["source"]
@@ -78,7 +84,9 @@ def test_a_second_stage_adds_seeds_and_refuses_reused_ones(first, preset_dir, tm
     assert p.targets == ("left",) and p.protocol["epochs"] == 1 and len(p.top) == 1
     assert p.provenance["source"] == "jaxarm rerank" and p.provenance["command"].startswith("jaxarm rerank")
     assert p.provenance["pool"][0]["ranking"] == str(first)
-    assert preset_from_ranking(second, "again").best == p.best
+    assert main(["rerank", "--make-preset", "again", "--from-rerank", str(second), "--preset-dir",
+                 str(preset_dir)]) == 0
+    assert presets.load("again", preset_dir).top == p.top
 
 
 def test_rank_orders_by_rate_over_every_run_then_closest_approach():

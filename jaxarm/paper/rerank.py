@@ -17,8 +17,9 @@ reproduction's statistics are then measured on other keys than the ones that cho
 
 Outputs in ``--out``: ``ranking.json`` (the pool's sources, protocol, seeds, command, timing and every set with its
 per-seed results and rank) and ``checkpoints/`` (a killed run started again with the same command resumes from its
-last completed epoch). ``--make-preset NAME`` writes a preset of the ranking: its best set and its 30 best, with the
-ranking's commands, the pool presets' provenance and the counts in its provenance.
+last completed epoch; once ranked, it trains nothing). ``--make-preset NAME`` writes a preset of the ranking: its best set and its 30 best, with the
+ranking's commands, the pool presets' provenance and the counts in its provenance (``--make-preset NAME
+--from-rerank DIR`` for a finished folder).
 """
 from __future__ import annotations
 
@@ -153,10 +154,16 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
                                                                   epoch_duration_s=epoch_s, test_duration_s=test_s))
     out = Path(out)
     n = len(sets) * seeds
+    identity = {"arm": arm, "target": target, "backend": backend, "epochs": n_epochs, "epoch_s": epoch_s,
+                "test_s": test_s, "seeds": new_seeds, "sets": [s["metaparams"] for s in sets],
+                "earlier": [s["earlier"] for s in sets], "rank_by": rank_by}
+    finished = _finished(out, identity)
+    if finished is not None:
+        log(f"{out / RANKING_FILE}: this ranking finished earlier, reused")
+        return finished
     batch = Batch(config, new_seeds * len(sets), stack_rows([m for m in mps for _ in range(seeds)]),
                   Target.stack([config.task.target] * n), out,
-                  {"rerank": {"arm": arm, "target": target, "epochs": n_epochs, "epoch_s": epoch_s, "test_s": test_s,
-                              "seeds": new_seeds, "sets": [s["metaparams"] for s in sets]},
+                  {"rerank": {k: v for k, v in identity.items() if k not in ("earlier", "rank_by")},
                    "label": f"{arm}/{target}: {len(sets)} sets x {seeds} seeds"})
     log(f"{len(sets)} sets x {seeds} seeds ({first_seed}..{first_seed + seeds - 1}) = {n} networks, {n_epochs} x "
         f"{epoch_s:g} s on the {arm} arm, {target} target, one batch over {batch.mesh.size} device(s) -> {out}")
@@ -178,7 +185,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
                                                               for x in a]}]
     ranked = rank(sets, rank_by)
     table = {
-        "arm": arm, "target": target, "command": command, "pool": sources, "rank_by": rank_by,
+        "arm": arm, "target": target, "command": command, "pool": sources, "rank_by": rank_by, "identity": identity,
         "protocol": {"epochs": n_epochs, "epoch_s": epoch_s, "test_s": test_s, "seeds": new_seeds,
                      "success_radius_m": config.task.success_radius_m, "backend": backend,
                      "keys": "network j of every set uses PRNGKey(seed j); a set's rate counts every run it had",
@@ -197,6 +204,16 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
         log(format_ranking(table))
         log(f"-> {out / RANKING_FILE}")
     return table
+
+
+def _finished(out: Path, identity: dict) -> dict | None:
+    """The folder's ranking when it was made from this exact pool, protocol and seeds (a rerun, e.g. to add
+    --make-preset, then trains nothing)."""
+    path = out / RANKING_FILE
+    if not path.is_file():
+        return None
+    table = json.loads(path.read_text())
+    return table if table.get("identity") == json.loads(json.dumps(identity)) else None
 
 
 def format_ranking(table: dict, rows: int = 40) -> str:
@@ -239,9 +256,9 @@ def preset_from_ranking(folder: Path, name: str, description: str | None = None)
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="jaxarm rerank", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), required=True)
-    ap.add_argument("--target", required=True, help="one target (left, bottom, ...)")
-    ap.add_argument("--pool", required=True,
+    ap.add_argument("--arm", choices=("simple", "musculoskeletal"))
+    ap.add_argument("--target", help="one target (left, bottom, ...)")
+    ap.add_argument("--pool",
                     help="comma-separated presets (names or .json paths: best and top sets) and earlier `jaxarm "
                          "rerank` folders (their --best sets)")
     ap.add_argument("--best", type=int, default=None,
@@ -258,8 +275,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
     ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
-    ap.add_argument("--out", type=Path, required=True, help="output folder (a rerun resumes it)")
+    ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
     ap.add_argument("--make-preset", metavar="NAME", help="when ranked, also write preset NAME.json of the ranking")
+    ap.add_argument("--from-rerank", type=Path, metavar="DIR",
+                    help="with --make-preset: write the preset of this finished ranking folder and exit")
     ap.add_argument("--description", help="the preset's one-line description (default: from the ranking)")
     ap.add_argument("--preset-dir", type=Path, default=preset_lib.PRESET_DIR,
                     help=f"where presets are read and written (default: the package's, {preset_lib.PRESET_DIR})")
@@ -270,8 +289,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 def rerank_main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
     try:
+        if args.from_rerank is not None:
+            if not args.make_preset:
+                ap.error("--from-rerank needs --make-preset NAME")
+            p = preset_from_ranking(args.from_rerank, args.make_preset, args.description)
+            print(f"preset {p.name!r}: best set + {len(p.top)} top sets -> {preset_lib.save(p, args.preset_dir)}")
+            return 0
+        missing = [o for o, v in (("--arm", args.arm), ("--target", args.target), ("--pool", args.pool),
+                                  ("--out", args.out)) if v is None]
+        if missing:
+            ap.error(f"{', '.join(missing)} required (or --make-preset NAME --from-rerank DIR)")
         parallel.start_from_arguments(args)
         pool = [p.strip() for p in args.pool.split(",") if p.strip()]
         table = rerank(args.arm, args.target, pool, args.out, seeds=args.seeds, first_seed=args.first_seed,
