@@ -141,14 +141,15 @@ def _epochs_of(sets, what: str) -> int:
 #: What ``jaxarm reproduce --arm ARM`` runs without ``--preset``: the protocol of each arm's headline numbers (README,
 #: "Results beside the paper"). target -> mode -> (preset, epochs or None for the preset's own, {metaparameter: value}).
 DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] = {
-    "musculoskeletal": {t: {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES} for t in DEFAULT_TARGETS},
-    "simple": {
-        # shoulder-only babbling, 6 epochs; (b) the local search around the left set
-        "left": {"seeds": ("simple-cmaes-left-shoulder", None, {}), "top30": ("simple-cmaes-left-local", None, {})},
-        # single-group babbling (explore_tot 8) for 16 epochs: a local search on the current model (searched again
-        # after the 1 ms P-cell and muscle sub-step fixes), its best set (a) and its 30 best sets (b)
-        "bottom": {m: ("simple-cmaes-bottom-fixed", None, {}) for m in MODES},
-    },
+    # (b) left: the 30 sets of a pool (this search's 30 best and the reaching-stay search's) that reached most often
+    # on 4 fresh seeds, equal rates ordered by the distance after entry (jaxarm rerank --rank-by stay)
+    "musculoskeletal": {"left": {"seeds": ("msarm-cmaes-2cm-rerank", None, {}),
+                                 "top30": ("msarm-rerank-left-stay", None, {})},
+                        "bottom": {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES}},
+    # each target: the pool of its searches' best sets ranked by how often they reach on fresh seeds (jaxarm
+    # rerank): (a) the most reliable set, (b) the 30 most reliable; left shoulder-only babbling for 6 epochs, bottom
+    # single-group babbling for 16
+    "simple": {t: {m: (f"simple-rerank-{t}", None, {}) for m in MODES} for t in DEFAULT_TARGETS},
 }
 
 

@@ -245,6 +245,7 @@ def preset_from_ranking(folder: Path, name: str, description: str | None = None)
         description = (f"{table['arm']} arm, {table['target']} target: the {len(rows)} sets of a pool that reached "
                        f"most often over {rows[0]['n']} fresh seeds each (jaxarm rerank, {epochs} epochs)")
     provenance = {"source": "jaxarm rerank", "command": table.get("command"), "folder": str(folder),
+                  "seed": table["protocol"]["seeds"][0], "rank_by": table.get("rank_by", "reach"),
                   "pool": table["pool"], "protocol": {k: v for k, v in table["protocol"].items() if k != "loop"},
                   "cost": table["timing"], "ranked": table["date"],
                   "date": _dt.datetime.now(_dt.timezone.utc).date().isoformat()}
