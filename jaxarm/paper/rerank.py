@@ -119,12 +119,12 @@ def rank(sets: list[dict], by: str = "reach") -> list[dict]:
 
 def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
            first_seed: int = DEFAULT_FIRST_SEED, best: int | None = None, epochs: int | None = None,
-           rank_by: str = "reach",
-           epoch_s: float = 30.0, test_s: float = 1.0, backend: str = "fast", progress: bool = True,
+           rank_by: str = "reach", epoch_s: float = 30.0, test_s: float = 1.0, backend: str = "fast", progress: bool = True,
            command: str | None = None, stop_after: int | None = None, log=print,
            preset_dir: Path = preset_lib.PRESET_DIR) -> dict | None:
     """Train every set of the pool with ``seeds`` network keys ``first_seed ..``, test, rank (``rank_by``,
-    :data:`RANK_BY`); write and return ranking.json's content (None when ``stop_after`` stopped the training early: run again to resume)."""
+    :data:`RANK_BY`); write and return ranking.json's content (None when ``stop_after`` stopped the training early:
+    run again to resume)."""
     from jaxarm.analysis.reach import distance_metrics
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
