@@ -17,9 +17,9 @@ reproduction's statistics are then measured on other keys than the ones that cho
 
 Outputs in ``--out``: ``ranking.json`` (the pool's sources, protocol, seeds, command, timing and every set with its
 per-seed results and rank) and ``checkpoints/`` (a killed run started again with the same command resumes from its
-last completed epoch; once ranked, it trains nothing). ``--make-preset NAME`` writes a preset of the ranking: its best set and its 30 best, with the
-ranking's commands, the pool presets' provenance and the counts in its provenance (``--make-preset NAME
---from-rerank DIR`` for a finished folder).
+last completed epoch; once ranked, it trains nothing). ``--make-preset NAME`` writes a preset of the ranking: its
+best set and its 30 best, with the ranking's commands, the pool presets' provenance and the counts in its
+provenance (``--make-preset NAME --from-rerank DIR`` for a finished folder).
 """
 from __future__ import annotations
 
@@ -119,8 +119,8 @@ def rank(sets: list[dict], by: str = "reach") -> list[dict]:
 
 def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
            first_seed: int = DEFAULT_FIRST_SEED, best: int | None = None, epochs: int | None = None,
-           rank_by: str = "reach", epoch_s: float = 30.0, test_s: float = 1.0, backend: str = "fast", progress: bool = True,
-           command: str | None = None, stop_after: int | None = None, log=print,
+           rank_by: str = "reach", epoch_s: float = 30.0, test_s: float = 1.0, backend: str = "fast",
+           progress: bool = True, command: str | None = None, stop_after: int | None = None, log=print,
            preset_dir: Path = preset_lib.PRESET_DIR) -> dict | None:
     """Train every set of the pool with ``seeds`` network keys ``first_seed ..``, test, rank (``rank_by``,
     :data:`RANK_BY`); write and return ranking.json's content (None when ``stop_after`` stopped the training early:
@@ -306,7 +306,8 @@ def rerank_main(argv: list[str] | None = None) -> int:
         parallel.start_from_arguments(args)
         pool = [p.strip() for p in args.pool.split(",") if p.strip()]
         table = rerank(args.arm, args.target, pool, args.out, seeds=args.seeds, first_seed=args.first_seed,
-                       best=args.best, epochs=args.epochs, rank_by=args.rank_by, epoch_s=args.epoch_s, test_s=args.test_s,
+                       best=args.best, epochs=args.epochs, rank_by=args.rank_by, epoch_s=args.epoch_s,
+                       test_s=args.test_s,
                        backend=args.backend, progress=not args.no_progress, preset_dir=args.preset_dir,
                        command=shlex.join(["jaxarm", "rerank", *argv]))
         if table is not None and args.make_preset and parallel.is_main_process():
