@@ -141,11 +141,7 @@ def _epochs_of(sets, what: str) -> int:
 #: What ``jaxarm reproduce --arm ARM`` runs without ``--preset``: the protocol of each arm's headline numbers (README,
 #: "Results beside the paper"). target -> mode -> (preset, epochs or None for the preset's own, {metaparameter: value}).
 DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] = {
-    # (b) left: the 30 sets of a pool (this search's 30 best and the reaching-stay search's) that reached most often
-    # on 4 fresh seeds, equal rates ordered by the distance after entry (jaxarm rerank --rank-by stay)
-    "musculoskeletal": {"left": {"seeds": ("msarm-cmaes-2cm-rerank", None, {}),
-                                 "top30": ("msarm-rerank-left-stay", None, {})},
-                        "bottom": {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES}},
+    "musculoskeletal": {t: {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES} for t in DEFAULT_TARGETS},
     # each target: the pool of its searches' best sets ranked by how often they reach on fresh seeds (jaxarm
     # rerank): (a) the most reliable set, (b) the 30 most reliable; left shoulder-only babbling for 6 epochs, bottom
     # single-group babbling for 16
