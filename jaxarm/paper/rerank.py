@@ -88,13 +88,17 @@ def pool_from(sources: list[str], best: int | None, preset_dir: Path) -> tuple[l
 RANK_BY = ("reach", "stay")
 
 
+def _check_rank_by(by: str) -> None:
+    if by not in RANK_BY:
+        raise ConfigError(f"--rank-by = {by!r}: must be one of {', '.join(RANK_BY)}")
+
+
 def rank(sets: list[dict], by: str = "reach") -> list[dict]:
     """The sets ordered by success rate over all their runs (highest first), then (``by``, :data:`RANK_BY`) by the
     mean closest approach, or by the mean distance after entry and then the closest approach (smallest first),
     then by pool order; each with ``rank``, ``successes``, ``n``, ``rate``, ``mean_min_distance_m``,
     ``mean_distance_after_m``."""
-    if by not in RANK_BY:
-        raise ConfigError(f"--rank-by = {by!r}: must be one of {', '.join(RANK_BY)}")
+    _check_rank_by(by)
     inf = float("inf")
     rows = []
     for i, s in enumerate(sets):
@@ -140,7 +144,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
         raise ConfigError(f"--best = {best}: must be >= 1")
     if epochs is not None and not 1 <= epochs <= 1000:
         raise ConfigError(f"--epochs = {epochs}: must be in [1, 1000]")
-    rank([], rank_by)   # checks rank_by before any training
+    _check_rank_by(rank_by)   # before any training
     sets, sources = pool_from(pool, best, preset_dir)
     new_seeds = list(range(first_seed, first_seed + seeds))
     used = sorted({s for st in sets for r in st["earlier"] for s in r["seeds"]} & set(new_seeds))
