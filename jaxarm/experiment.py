@@ -163,12 +163,13 @@ def write_records(run, trained_res, naive_res) -> dict:
     group[pops.slice(net.spec.readout)] = pops.em_groups()
     group[pops.slice(net.spec.proprio)] = pops.p_groups()
     networks = run.recorded_networks()
+    earlier = rec_mod.earlier_windows(run.out / rec_mod.SPIKES_FILE, windows, seeds=run.seeds, networks=networks)
     rec_mod.save_spikes(run.out / rec_mod.SPIKES_FILE, windows, seeds=run.seeds, networks=networks,
                         dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=net.populations,
                         pop_start=[pops.start[p] for p in net.populations],
                         pop_stop=[pops.stop[p] for p in net.populations],
                         group=group,
-                        capacity=run.record_capacity, config=run.record, arm=run.config.arm)
+                        capacity=run.record_capacity, config=run.record, arm=run.config.arm, earlier=earlier)
     files = [rec_mod.SPIKES_FILE]
     if run.config.arm == "musculoskeletal":
         from jaxarm.arm.musculoskeletal import GROUP_MUSCLES
@@ -180,11 +181,13 @@ def write_records(run, trained_res, naive_res) -> dict:
                                 seeds=run.seeds, networks=networks, muscle_names=arm.muscle_names, groups=groups,
                                 interval_ms=net.interface_ms):
             files.append(rec_mod.MUSCLES_FILE)
-    return {"files": files, "windows": list(windows), "networks": networks,
-            "capacity_spikes": run.record_capacity, "max_rate_hz": run.record.max_rate_hz,
-            "memory_bound": run.record_memory,
-            "spikes": {name: [int(c) for c in np.asarray(w["recording"].spikes.count)[networks]]
-                       for name, w in windows.items()}}
+    spikes = {name: [int(c) for c in np.asarray(w["recording"].spikes.count)[networks]]
+              for name, w in windows.items()}
+    spikes |= {name: [int(c) for c in w["counts"].sum(axis=1)] for name, w in earlier.items()}
+    capacity = run.record_capacity | {name: int(w["capacity"]) for name, w in earlier.items()}
+    return {"files": files, "windows": list(windows) + list(earlier), "networks": networks,
+            "capacity_spikes": capacity, "max_rate_hz": run.record.max_rate_hz,
+            "memory_bound": run.record_memory, "spikes": spikes}
 
 
 def add_record_arguments(ap, train: bool) -> None:
@@ -396,8 +399,7 @@ def _centre_out_main(ap, args) -> int:
         net = dataclasses.replace(net, spec=ensure_target_code(net.spec, task))
         if args.coordinator or args.num_processes:
             raise ConfigError("--task centre-out-8 runs in one process (no --coordinator yet)")
-        # every usable core as the native kernel's threads (--devices N narrows it), the batch in one process
-        net = dataclasses.replace(net, native_threads=args.devices or parallel.usable_cores())
+        # the batch over every device of this process (--devices N narrows it), one kernel thread per device
         config = LoopConfig(arm=args.arm, backend=args.backend, network=net, task=task.task_config())
         mp = MetaParams.from_dict(_parse_overrides(args.overrides))
     except ConfigError as e:

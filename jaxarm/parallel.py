@@ -29,6 +29,7 @@ from functools import lru_cache
 from typing import Any, Callable
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jax.sharding import AxisType, Mesh, NamedSharding, PartitionSpec
 
@@ -182,13 +183,41 @@ def mesh() -> Mesh:
     return _mesh(tuple(jax.devices()))
 
 
+def _round_up(n: int, devices: int, at_once: int) -> int:
+    d = devices * max(1, at_once)
+    return -(-n // d) * d
+
+
 def padded_size(n: int, m: Mesh | None = None, at_once: int = 0) -> int:
     """``n`` rounded up to a multiple of the mesh's device count, times ``at_once`` when that is given: every
     device then runs whole groups of ``at_once`` networks (:func:`map_networks`), the same program whatever the
     layout. (XLA's CPU code for an op differs with its batch size, in the last bit: a network computed in a
     batch of 15 and in one of 30 drifts apart within seconds of training; in groups of 8 it is the same.)"""
-    d = (m or mesh()).size * max(1, at_once)
-    return -(-n // d) * d
+    return _round_up(n, (m or mesh()).size, at_once)
+
+
+def sharded_map(fn: Callable, m: Mesh | None = None, at_once: int | None = None) -> Callable:
+    """``fn`` mapped over the leading axis of its arguments (inside a ``jit``), split over the mesh ``m`` when one
+    is given (else on the default device), each device's share in groups of ``at_once`` networks (default
+    :func:`networks_at_once`; 0: one ``vmap``). Rows are padded to whole groups on every device (with copies of the
+    last row) and the padding dropped from the result, so a row's result is the same bits whatever the batch size
+    and layout. The result is whole (replicated) on every device of ``m``."""
+    at_once = networks_at_once() if at_once is None else at_once
+    local = map_networks(fn, at_once)
+
+    def mapped(*args):
+        n = jax.tree.leaves(args)[0].shape[0]
+        n_pad = _round_up(n, 1 if m is None else m.size, at_once)
+        pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], n_pad - n, axis=0)]) if n_pad > n else x  # noqa: E731
+        args = jax.tree.map(pad, args)
+        if m is None:
+            return jax.tree.map(lambda x: x[:n], local(*args))
+        everywhere = NamedSharding(m, REPLICATED)
+        out = jax.shard_map(local, mesh=m, in_specs=BATCHED, out_specs=BATCHED, check_vma=False)(*args)
+        # gathered whole onto every device: what follows (means over seeds, ...) is computed whole, not in parts
+        return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, everywhere)[:n], out)
+
+    return mapped
 
 
 def is_main_process() -> bool:
@@ -258,4 +287,5 @@ def describe() -> dict:
 
 
 __all__ = ["AXIS", "BATCHED", "REPLICATED", "start", "add_arguments", "start_from_arguments", "mesh", "padded_size",
-           "is_main_process", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe", "usable_cores"]
+           "sharded_map", "is_main_process", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe",
+           "usable_cores"]

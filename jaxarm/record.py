@@ -198,11 +198,27 @@ SPIKES_FILE = "spikes.npz"
 MUSCLES_FILE = "muscles.npz"
 
 
+def earlier_windows(path: Path, now, *, seeds, networks) -> dict[str, dict[str, np.ndarray]]:
+    """The training-epoch windows of an existing ``spikes.npz`` of the same networks that are not in ``now`` (names),
+    as name -> {key: array}: a run resumed or rerun after a recorded epoch cannot record that epoch again, and
+    rewriting the file must not drop it. Empty when there is no such file or it holds other networks."""
+    path = Path(path)
+    if not path.is_file():
+        return {}
+    f = SpikeFile(path)
+    if (f.data["networks"].tolist() != list(networks)
+            or f.seeds.tolist() != np.asarray(seeds)[list(networks)].tolist()):
+        return {}
+    return {w: {k[len(w) + 1:]: v for k, v in f.data.items() if k.startswith(w + ".")}
+            for w in f.windows if w.startswith("epoch_") and w not in now}
+
+
 def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms: float, interval_ms: float,
                 populations, pop_start, pop_stop, group, capacity: dict[str, int], config: RecordConfig,
-                arm: str) -> Path:
+                arm: str, earlier: dict[str, dict[str, np.ndarray]] | None = None) -> Path:
     """Write ``spikes.npz``. ``windows``: name -> {"recording": a host Recording batch (networks first),
-    "start_step": int, "stop_step": int}; only the networks ``networks`` (indices) are written.
+    "start_step": int, "stop_step": int}; only the networks ``networks`` (indices) are written. ``earlier``
+    (:func:`earlier_windows`): windows of an earlier write kept as they were, after these.
 
     Keys: ``windows`` (names), ``seeds``, ``networks``, ``dt_ms``, ``interval_ms``, ``n_all``, ``populations``,
     ``pop_start``/``pop_stop`` (global id ranges), ``group`` (n_all,: the muscle group, 0..3 in
@@ -215,7 +231,8 @@ def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms:
     """
     n_all = int(pop_stop[-1])
     steps_per_interval = round(interval_ms / dt_ms)
-    out: dict[str, Any] = {"windows": np.asarray(list(windows)), "seeds": np.asarray(seeds)[list(networks)],
+    earlier = earlier or {}
+    out: dict[str, Any] = {"windows": np.asarray(list(windows) + list(earlier)), "seeds": np.asarray(seeds)[list(networks)],
                            "networks": np.asarray(networks, np.int32), "dt_ms": np.float64(dt_ms),
                            "interval_ms": np.float64(interval_ms), "n_all": np.int32(n_all),
                            "populations": np.asarray(populations), "pop_start": np.asarray(pop_start, np.int32),
@@ -243,6 +260,7 @@ def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms:
                 f"{name}.q_rad": np.asarray(rec.q_rad)[list(networks)],
                 f"{name}.hand_m": np.asarray(rec.hand_m)[list(networks)],
                 f"{name}.u": np.asarray(rec.u)[list(networks)]}
+    out |= {f"{name}.{key}": value for name, arrays in earlier.items() for key, value in arrays.items()}
     path = Path(path)
     np.savez_compressed(path, **out)
     return path

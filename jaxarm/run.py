@@ -281,8 +281,9 @@ class Batch:
             recorded = self.record.recorded_epochs(epochs) if self.record is not None else ()
             skipped = [e for e in recorded if e <= done]
             if skipped and parallel.is_main_process():
-                print(f"note: epoch(s) {', '.join(map(str, skipped))} finished before this invocation; their spikes "
-                      "are not recorded (train into a new --out to record them)", file=sys.stderr)
+                print(f"note: epoch(s) {', '.join(map(str, skipped))} finished before this invocation and are not "
+                      "recorded again; spikes.npz keeps them if an earlier invocation wrote it (one killed before "
+                      "its end did not: train into a new --out to record them)", file=sys.stderr)
             t0 = time.perf_counter()
             epoch_fn = (self.epoch_fn.lower(carry, mps, targets).compile()
                         if any(e + 1 not in recorded for e in range(done, last)) else None)

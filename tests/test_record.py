@@ -152,6 +152,17 @@ def test_train_and_test_commands_write_the_spike_file(tmp_path, capsys):
     assert f.span_ms("epoch_1") == pytest.approx((150.0, 200.0))
     traj = np.load(out / "trajectories.npz")
     np.testing.assert_array_equal(f.get("test", "hand_m"), traj["hand"][:, 1:])
+    # the same command again: the run is finished, nothing trains, the tests are re-recorded, and the training
+    # window recorded by the first invocation stays in spikes.npz (it was dropped)
+    assert main(["train", "--networks", "2", "--epochs", "2", "--epoch-s", "0.2", "--test-s", "0.2", "--out",
+                 str(out), "--no-progress", "--record-spikes", "--record-train-s", "0.05", "--record-epochs",
+                 "1"]) == 0
+    assert "epoch(s) 1 finished before this invocation" in capsys.readouterr().err
+    again = rec_mod.SpikeFile(out / "spikes.npz")
+    assert again.windows == f.windows
+    assert json.loads((out / "results.json").read_text())["record"]["spikes"] == res["spikes"]
+    for key in f.data:
+        np.testing.assert_array_equal(again.data[key], f.data[key], err_msg=key)
     assert main(["test", "--from", str(out), "--test-s", "0.2", "--out", str(tmp_path / "t1"), "--record-spikes",
                  "--record-networks", "1"]) == 0
     g = rec_mod.SpikeFile(tmp_path / "t1" / "spikes.npz")

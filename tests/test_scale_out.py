@@ -86,6 +86,20 @@ def test_networks_at_once_groups_and_pads_a_devices_share():
         parallel.start(networks_at_once=-1)
 
 
+def test_sharded_map_gives_every_row_whatever_the_mesh_and_batch():
+    """`sharded_map` pads a batch to whole groups on every device and drops the padding: every row, of a pytree,
+    for batches of 1, 5 and 17 rows, without a mesh, on one device and on two, as one jit."""
+    from jaxarm import parallel
+
+    fn = lambda a, b: {"sum": a + b["y"], "twice": 2 * a}              # noqa: E731
+    for n in (1, 5, 17):
+        a, y = np.arange(n, dtype=np.float32), np.arange(n, dtype=np.float32)[:, None] * np.ones(3, np.float32)
+        for m in (None, one_device_mesh(), parallel.mesh()):
+            out = jax.jit(parallel.sharded_map(fn, m, 8))(a, {"y": y})
+            np.testing.assert_array_equal(np.asarray(out["sum"]), a[:, None] + y)
+            np.testing.assert_array_equal(np.asarray(out["twice"]), 2 * a)
+
+
 def test_networks_is_not_read_as_networks_at_once(monkeypatch):
     """The command line sets up the devices from its scale-out options before the command parses the rest; `--networks
     30` must not reach that parser as an abbreviation of `--networks-at-once` (it did: every `jaxarm train --networks N`

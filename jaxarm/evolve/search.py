@@ -357,33 +357,6 @@ def make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig, 
     return _make_search_cached(fitness_fn, space, config, mesh)
 
 
-def sharded_map(fn: Callable, mesh, batch_size: int | None = None) -> Callable:
-    """``fn`` mapped over the leading axis of its arguments, split over ``mesh`` when one is given, each device's
-    share in groups of ``batch_size`` networks (default :func:`jaxarm.parallel.networks_at_once`; 0: one ``vmap``).
-    Rows are padded to a multiple of the devices times the group (with copies of the last row), so every layout
-    runs the same groups, and the padding is dropped from the result."""
-    from jaxarm import parallel
-
-    at_once = parallel.networks_at_once() if batch_size is None else batch_size
-    local = parallel.map_networks(fn, at_once)
-
-    def mapped(*args):
-        n = jax.tree.leaves(args)[0].shape[0]
-        group = max(1, at_once) * (1 if mesh is None else mesh.size)
-        n_pad = -(-n // group) * group
-        pad = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], n_pad - n, axis=0)]) if n_pad > n else x  # noqa: E731
-        args = jax.tree.map(pad, args)
-        if mesh is None:
-            return jax.tree.map(lambda x: x[:n], local(*args))
-        everywhere = jax.sharding.NamedSharding(mesh, parallel.REPLICATED)
-        out = jax.shard_map(local, mesh=mesh, in_specs=parallel.BATCHED, out_specs=parallel.BATCHED,
-                            check_vma=False)(*args)
-        # gathered whole onto every device: what follows (means over seeds, ...) is computed whole, not in parts
-        return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, everywhere)[:n], out)
-
-    return mapped
-
-
 def _on_mesh(tree, mesh):
     """Host or single-device values as whole (replicated) global arrays on ``mesh`` (unchanged without one)."""
     if mesh is None:
@@ -458,7 +431,7 @@ def _make_search(fitness_fn: Callable, space: SearchSpace, config: EvolveConfig,
 
         whole = 0 if config.eval_batch_size in (0, P) else config.eval_batch_size * S
         batch = parallel.networks_at_once() or whole
-        f, metrics = sharded_map(evaluate_one, mesh, batch)(flat_keys, flat_mps)
+        f, metrics = parallel.sharded_map(evaluate_one, mesh, batch)(flat_keys, flat_mps)
         f, metrics = f.reshape(P, S), {m: v.reshape(P, S) for m, v in metrics.items()}   # (P, S), {name: (P, S)}
         fitness, bad = _combine_seeds(f, config.seed_reduce)
         return fitness, jnp.sum(bad, axis=1), {m: jnp.mean(v, axis=1) for m, v in metrics.items()}
@@ -554,16 +527,18 @@ class Reevaluation(NamedTuple):
 def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_reduce: str = "mean",
                     mesh=None) -> Callable:
     """``reevaluate(key, units (K, n_dims)) -> Reevaluation``: each candidate with the same ``seeds`` fresh keys
-    (split from ``key``), the K x seeds evaluations in one :func:`sharded_map` (over ``mesh`` when given, in groups
-    of :func:`jaxarm.parallel.networks_at_once`). A candidate's result depends on it alone, not on the others of the
-    call: every evaluation runs in a group of the same size whatever the call holds (:func:`candidates_per_call`
-    gives the K that fills whole groups).
+    (split from ``key``), the K x seeds evaluations in one :func:`jaxarm.parallel.sharded_map` (over ``mesh`` when
+    given, in groups of :func:`jaxarm.parallel.networks_at_once`). A candidate's result depends on it alone, not on
+    the others of the call: every evaluation runs in a group of the same size whatever the call holds
+    (:func:`candidates_per_call` gives the K that fills whole groups).
 
     The search ranks candidates by noisy fitness, so its best are partly its luckiest; evaluating the top-k again
     with new seeds (and, for the reaching task, the full training length) gives the final ranking.
     """
     if seeds < 1:
         raise ConfigError(f"seeds = {seeds!r} is out of range; allowed >= 1")
+    from jaxarm import parallel
+
     evaluate_one = _normalise(fitness_fn)
 
     @jax.jit
@@ -572,7 +547,7 @@ def make_reevaluate(fitness_fn: Callable, space: SearchSpace, seeds: int, seed_r
         k = units.shape[0]
         keys = jnp.tile(jax.random.split(raw_key(key), seeds), (k, 1))   # candidate-major: (K * seeds, 2)
         mps = jax.tree.map(lambda x: jnp.repeat(x, seeds, axis=0), space.to_metaparams(units))
-        f, metrics = sharded_map(evaluate_one, mesh)(keys, mps)
+        f, metrics = parallel.sharded_map(evaluate_one, mesh)(keys, mps)
         f = f.reshape(k, seeds)
         fitness, _ = _combine_seeds(f, seed_reduce)
         return Reevaluation(fitness, f, {m: jnp.mean(v.reshape(k, seeds), axis=1) for m, v in metrics.items()})

@@ -130,7 +130,8 @@ def _train_together(groups: list, out: Path, progress: bool, stop_after: int | N
     return results
 
 
-def _epochs_of(sets, what: str) -> int:
+def shared_epochs(sets, what: str) -> int:
+    """The number of epochs all ``sets`` (MetaParams) train for; a one-line error naming ``what`` if they differ."""
     values = sorted({int(round(float(m.epochs))) for m in sets})
     if len(values) != 1:
         raise ConfigError(f"{what}: the sets train for different numbers of epochs ({values}); the sets of one run "
@@ -197,7 +198,7 @@ def reproduction_plan(preset, arm: str, targets, epochs, top: int, overrides: di
             elif p.protocol is not None:       # the preset's published numbers used this length
                 n_epochs = p.protocol["epochs"]
             else:
-                n_epochs = _epochs_of(sets, f"preset {p.name!r} {'best' if mode == 'seeds' else 'top'}")
+                n_epochs = shared_epochs(sets, f"preset {p.name!r} {'best' if mode == 'seeds' else 'top'}")
             plan[target][mode] = {"preset": p, "sets": sets, "epochs": n_epochs, "set": changes}
     return plan
 
@@ -537,8 +538,8 @@ def _reproduce_centre_out(args, preset, argv) -> int:
     task = CentreOut(epochs_per_target=3 if args.epochs is None else args.epochs, epoch_duration_s=args.epoch_s,
                      test_duration_s=args.test_s)
     net = network_config_of(args)
-    net = dataclasses.replace(net, native_threads=args.devices or parallel.usable_cores(),
-                              **({} if args.dt_ms is None else {"dt_ms": args.dt_ms}))
+    if args.dt_ms is not None:
+        net = dataclasses.replace(net, dt_ms=args.dt_ms)
     mp = MetaParams.from_dict({**(preset.best if preset is not None else {}), **_parse_overrides(args.overrides)})
     print(f"{args.arm} arm, eight centre-out targets: {args.networks} networks per condition (target code, "
           f"control), {task.epochs_per_target} x {task.epoch_duration_s:g} s per target, cycled "

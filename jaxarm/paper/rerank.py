@@ -132,7 +132,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
     from jaxarm.analysis.reach import distance_metrics
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
-    from jaxarm.paper.reproduce import _epochs_of
+    from jaxarm.paper.reproduce import shared_epochs
     from jaxarm.run import Batch, stack_rows
     from jaxarm.task.config import Target, TaskConfig
 
@@ -153,7 +153,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
                           f"the earlier ranking; give --first-seed >= "
                           f"{max(s for st in sets for r in st['earlier'] for s in r['seeds']) + 1}")
     mps = [MetaParams.from_dict(s["metaparams"]) for s in sets]
-    n_epochs = epochs if epochs is not None else _epochs_of(mps, "--pool")
+    n_epochs = epochs if epochs is not None else shared_epochs(mps, "--pool")
     config = LoopConfig(arm=arm, backend=backend, task=TaskConfig(target=target, epochs=n_epochs,
                                                                   epoch_duration_s=epoch_s, test_duration_s=test_s))
     out = Path(out)

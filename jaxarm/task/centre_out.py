@@ -131,14 +131,19 @@ def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
     distribution of targets reached per network, median closest approach per target (cm), hand paths (m)."""
     import numpy as np
 
+    from jaxarm import parallel
     from jaxarm.run import network_keys
 
     fns = make_centre_out_train(config, task)
     keys = network_keys(seeds)
-    trained, history = jax.jit(jax.vmap(fns.train, in_axes=(0, None)))(keys, mp)
-    test = jax.jit(jax.vmap(fns.test, in_axes=(0, 0, None)))
-    res = test(keys, trained, mp)
-    naive = test(keys, jax.jit(jax.vmap(lambda k: fns.fns.init(k).trained))(keys), mp)
+    # over every device of this process, in groups of networks_at_once: a network's result is the same bits
+    # whatever the number of seeds beside it and the devices
+    m = parallel.mesh() if jax.process_count() == 1 else None
+    over_networks = lambda fn: jax.jit(parallel.sharded_map(fn, m))   # noqa: E731
+    trained, history = over_networks(lambda k: fns.train(k, mp))(keys)
+    test = over_networks(lambda k, t: fns.test(k, t, mp))
+    res = test(keys, trained)
+    naive = test(keys, over_networks(lambda k: fns.fns.init(k).trained)(keys))
     n_t = len(task.targets)
     spec = config.network.spec
     hist = {"rates_last10s_hz": {p: np.asarray(history.rates_last10s_hz)[:, :, j].mean(axis=0).round(3).tolist()
