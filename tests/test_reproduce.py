@@ -227,11 +227,12 @@ def test_every_shipped_preset_loads_and_is_within_bounds():
     names = presets.available(archive=True)
     assert list(names)[0] == "original"
     # the README's presets sit in the package folder, the other searches' in archive/, loadable by name
-    assert set(presets.available()) == {"original", "msarm-cmaes-2cm-rerank", "simple-rerank-left",
-                                        "simple-rerank-bottom", "simple-cmaes-left-shoulder"}
+    assert set(presets.available()) == {"original", "msarm-cmaes-2cm-rerank", "simple-rerank-left-32",
+                                        "simple-rerank-bottom-24", "simple-cmaes-left-shoulder"}
     assert "simple-fixedseed-left" in names and presets.load("simple-fixedseed-left").name == "simple-fixedseed-left"
     assert {"simple-cmaes-left-fixed", "simple-cmaes-shortfall-long", "simple-cmaes-bottom-local",
-            "simple-cmaes-left-local", "simple-cmaes-bottom-fixed", "msarm-rerank-left-stay"} <= set(names)
+            "simple-cmaes-left-local", "simple-cmaes-bottom-fixed", "msarm-rerank-left-stay", "simple-rerank-left",
+            "simple-rerank-bottom"} <= set(names)
     for name in names:
         p = presets.load(name)
         assert p.name == name and p.arms
@@ -314,8 +315,8 @@ def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
 
     plan = reproduction_plan(None, "simple", None, None, 30, {}, presets.PRESET_DIR)
     assert {t: {m: (s["preset"].name, s["epochs"], s["set"]) for m, s in modes.items()} for t, modes in plan.items()} \
-        == {"left": {"seeds": ("simple-rerank-left", 6, {}), "top30": ("simple-rerank-left", 6, {})},
-            "bottom": {"seeds": ("simple-rerank-bottom", 16, {}), "top30": ("simple-rerank-bottom", 16, {})}}
+        == {"left": {"seeds": ("simple-rerank-left-32", 6, {}), "top30": ("simple-rerank-left-32", 6, {})},
+            "bottom": {"seeds": ("simple-rerank-bottom-24", 16, {}), "top30": ("simple-rerank-bottom-24", 16, {})}}
     assert all(float(m.explore_tot) == 8.0 for m in plan["bottom"]["seeds"]["sets"])
     assert len(plan["left"]["top30"]["sets"]) == 30
     ms = reproduction_plan(None, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
@@ -325,12 +326,12 @@ def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     out = tmp_path / "default"
     assert main(["reproduce", "--out", str(out), "--top", "1", *TINY]) == 0
     text = capsys.readouterr().out
-    assert "default protocol" in text and "(a) simple-rerank-left" in text
+    assert "default protocol" in text and "(a) simple-rerank-left-32" in text
     table = json.loads((out / "success_table.json").read_text())
     row = table["targets"]["left"]
-    assert row["protocol"]["seeds"]["preset"] == "simple-rerank-left"
-    assert row["protocol"]["top30"] == {"preset": "simple-rerank-left", "epochs": 2, "set": {}}
-    assert set(table["presets"]) == {"simple-rerank-left"}
+    assert row["protocol"]["seeds"]["preset"] == "simple-rerank-left-32"
+    assert row["protocol"]["top30"] == {"preset": "simple-rerank-left-32", "epochs": 2, "set": {}}
+    assert set(table["presets"]) == {"simple-rerank-left-32"}
     assert row["measures"]["seeds"]["jerk_trained"]["paper"] == 28.1
     assert "| left | networks reaching" in text
     with pytest.raises(ConfigError, match="default protocol has left, bottom"):

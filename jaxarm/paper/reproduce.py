@@ -144,9 +144,10 @@ def shared_epochs(sets, what: str) -> int:
 DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] = {
     "musculoskeletal": {t: {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES} for t in DEFAULT_TARGETS},
     # each target: the pool of its searches' best sets ranked by how often they reach on fresh seeds (jaxarm
-    # rerank): (a) the most reliable set, (b) the 30 most reliable; left shoulder-only babbling for 6 epochs, bottom
-    # single-group babbling for 16
-    "simple": {t: {m: (f"simple-rerank-{t}", None, {}) for m in MODES} for t in DEFAULT_TARGETS},
+    # rerank, in stages: 32 seeds for the left sets, 24 for the bottom ones): (a) the most reliable set, (b) the 30
+    # most reliable; left shoulder-only babbling for 6 epochs, bottom single-group babbling for 16
+    "simple": {t: {m: (name, None, {}) for m in MODES}
+               for t, name in (("left", "simple-rerank-left-32"), ("bottom", "simple-rerank-bottom-24"))},
 }
 
 
