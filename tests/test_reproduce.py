@@ -227,8 +227,9 @@ def test_every_shipped_preset_loads_and_is_within_bounds():
     names = presets.available(archive=True)
     assert list(names)[0] == "original"
     # the README's presets sit in the package folder, the other searches' in archive/, loadable by name
-    assert set(presets.available()) == {"original", "msarm-cmaes-2cm-rerank", "simple-rerank-left-32",
-                                        "simple-rerank-bottom-24", "simple-cmaes-left-shoulder"}
+    assert set(presets.available()) == {"original", "msarm-cmaes-2cm-rerank", "msarm-rerank-bottom-stay",
+                                        "simple-rerank-left-32", "simple-rerank-bottom-24",
+                                        "simple-cmaes-left-shoulder"}
     assert "simple-fixedseed-left" in names and presets.load("simple-fixedseed-left").name == "simple-fixedseed-left"
     assert {"simple-cmaes-left-fixed", "simple-cmaes-shortfall-long", "simple-cmaes-bottom-local",
             "simple-cmaes-left-local", "simple-cmaes-bottom-fixed", "msarm-rerank-left-stay", "simple-rerank-left",
@@ -320,8 +321,10 @@ def test_the_default_protocol_runs_each_arms_headline_presets(tmp_path, capsys):
     assert all(float(m.explore_tot) == 8.0 for m in plan["bottom"]["seeds"]["sets"])
     assert len(plan["left"]["top30"]["sets"]) == 30
     ms = reproduction_plan(None, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
-    assert {(s["preset"].name, s["epochs"]) for modes in ms.values() for s in modes.values()} \
-        == {("msarm-cmaes-2cm-rerank", 12)} and list(ms) == ["left", "bottom"]
+    assert {(t, m): (s["preset"].name, s["epochs"]) for t, modes in ms.items() for m, s in modes.items()} \
+        == {("left", "seeds"): ("msarm-cmaes-2cm-rerank", 12), ("left", "top30"): ("msarm-cmaes-2cm-rerank", 12),
+            ("bottom", "seeds"): ("msarm-cmaes-2cm-rerank", 12), ("bottom", "top30"): ("msarm-rerank-bottom-stay", 12)}
+    assert list(ms) == ["left", "bottom"] and len(ms["bottom"]["top30"]["sets"]) == 30
     assert set(DEFAULT_PROTOCOL) == {"simple", "musculoskeletal"}
     out = tmp_path / "default"
     assert main(["reproduce", "--out", str(out), "--top", "1", *TINY]) == 0

@@ -142,7 +142,11 @@ def shared_epochs(sets, what: str) -> int:
 #: What ``jaxarm reproduce --arm ARM`` runs without ``--preset``: the protocol of each arm's headline numbers (README,
 #: "Results beside the paper"). target -> mode -> (preset, epochs or None for the preset's own, {metaparameter: value}).
 DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] = {
-    "musculoskeletal": {t: {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES} for t in DEFAULT_TARGETS},
+    # bottom (b): the 30 sets of two searches that stayed closest after entry among those that reached on every one
+    # of 4 fresh seeds (jaxarm rerank --rank-by stay; the paper's 3.2 cm after entry); the rest the 2 cm search's
+    "musculoskeletal": {"left": {m: ("msarm-cmaes-2cm-rerank", None, {}) for m in MODES},
+                        "bottom": {"seeds": ("msarm-cmaes-2cm-rerank", None, {}),
+                                   "top30": ("msarm-rerank-bottom-stay", None, {})}},
     # each target: the pool of its searches' best sets ranked by how often they reach on fresh seeds (jaxarm
     # rerank, in stages: 32 seeds for the left sets, 24 for the bottom ones): (a) the most reliable set, (b) the 30
     # most reliable; left shoulder-only babbling for 6 epochs, bottom single-group babbling for 16
