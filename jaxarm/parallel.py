@@ -19,9 +19,9 @@ Set-up, once per process and before JAX computes anything (:func:`start`; the co
 
 Each device runs its share in groups of :func:`networks_at_once` networks (8 on CPUs), one group after the other, and
 a batch is padded to whole groups on every device (:func:`padded_size`): the extra members are computed and dropped
-by the caller, never counted. Every network is then computed by the same program whatever the layout. (Its row's
-place within its group still matters in the last bit: the same network at another row of another batch may round
-differently; docs/scaling.md, "Known limit".)
+by the caller, never counted. Every network is then computed by the same program whatever the layout. (The same
+network at another row of another batch has been seen to round differently in the last bit; cause not yet found:
+docs/scaling.md, "Known limit".)
 """
 from __future__ import annotations
 

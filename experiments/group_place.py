@@ -1,0 +1,50 @@
+"""Does a network's result depend on where it sits in its group of 8 (docs/scaling.md, "Known limit")?
+
+    python experiments/group_place.py --arm musculoskeletal --train-s 10 --compare place   # key 0 at place 0 vs 4
+    python experiments/group_place.py --arm musculoskeletal --train-s 20 --compare mates   # key 0 beside 1-7 vs 9-15
+
+Trains one group of 8 networks (one device, the authors' metaparameters) twice and prints which keys' whole
+training state differs in any bit between the two batches.
+"""
+import argparse
+import tempfile
+
+import jax
+import numpy as np
+
+from jaxarm import parallel
+
+BATCHES = {"place": ([0, 1, 2, 3, 4, 5, 6, 7], [4, 5, 6, 7, 0, 1, 2, 3]),
+           "mates": ([0, 1, 2, 3, 4, 5, 6, 7], [0, 9, 10, 11, 12, 13, 14, 15])}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="musculoskeletal")
+    ap.add_argument("--train-s", type=float, default=10.0, help="one epoch of this many seconds (s)")
+    ap.add_argument("--compare", choices=tuple(BATCHES), default="place")
+    args = ap.parse_args()
+    parallel.start(devices=1)
+    from jaxarm.learning.metaparams import MetaParams
+    from jaxarm.loop import LoopConfig
+    from jaxarm.run import Batch, stack_rows
+    from jaxarm.task.config import Target, TaskConfig
+
+    config = LoopConfig(arm=args.arm, task=TaskConfig(epochs=1, epoch_duration_s=args.train_s, test_duration_s=0.2))
+    states = []
+    for seeds in BATCHES[args.compare]:
+        with tempfile.TemporaryDirectory() as d:
+            batch = Batch(config, seeds, stack_rows([MetaParams.original()] * 8),
+                          Target.stack([config.task.target] * 8), d, {"seeds": seeds})
+            carry = batch.train(progress=False)[0]
+        by_key = {s: r for r, s in enumerate(seeds)}
+        states.append({s: [np.asarray(parallel.host(x))[r] for x in jax.tree.leaves(carry)]
+                       for s, r in by_key.items()})
+    common = sorted(set(states[0]) & set(states[1]))
+    differ = [s for s in common if any(np.any(a != b) for a, b in zip(states[0][s], states[1][s]))]
+    print(f"{args.arm}, {args.train_s:g} s, compare {args.compare}: keys in both batches {common}; "
+          f"whole training state differs for {differ or 'none'}")
+
+
+if __name__ == "__main__":
+    main()
