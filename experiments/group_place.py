@@ -2,9 +2,12 @@
 
     python experiments/group_place.py --arm musculoskeletal --train-s 10 --compare place   # key 0 at place 0 vs 4
     python experiments/group_place.py --arm musculoskeletal --train-s 20 --compare mates   # key 0 beside 1-7 vs 9-15
+    python experiments/group_place.py --arm musculoskeletal --target bottom --preset msarm-rerank-bottom-stay \
+        --train-s 60 --compare place                                      # key k with the preset's top[k], as (b)
 
-Trains one group of 8 networks (one device, the authors' metaparameters) twice and prints which keys' whole
-training state differs in any bit between the two batches.
+Trains one group of 8 networks (one device; the authors' metaparameters, or with --preset key k trained with the
+preset's k-th top set as in a reproduction's (b)) twice and prints which keys' whole training state differs in any
+bit between the two batches.
 """
 import argparse
 import tempfile
@@ -23,18 +26,24 @@ def main() -> None:
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="musculoskeletal")
     ap.add_argument("--train-s", type=float, default=10.0, help="one epoch of this many seconds (s)")
     ap.add_argument("--compare", choices=tuple(BATCHES), default="place")
+    ap.add_argument("--target", choices=("left", "bottom"), default="left")
+    ap.add_argument("--preset", default=None, help="key k trains with this preset's top[k] (default: the authors')")
     args = ap.parse_args()
     parallel.start(devices=1)
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
+    from jaxarm.paper import presets
     from jaxarm.run import Batch, stack_rows
     from jaxarm.task.config import Target, TaskConfig
 
-    config = LoopConfig(arm=args.arm, task=TaskConfig(epochs=1, epoch_duration_s=args.train_s, test_duration_s=0.2))
+    config = LoopConfig(arm=args.arm, task=TaskConfig(target=args.target, epochs=1, epoch_duration_s=args.train_s,
+                                                      test_duration_s=0.2))
+    top = presets.load(args.preset).top_metaparams() if args.preset else None
     states = []
     for seeds in BATCHES[args.compare]:
+        mps = [top[s] if top else MetaParams.original() for s in seeds]
         with tempfile.TemporaryDirectory() as d:
-            batch = Batch(config, seeds, stack_rows([MetaParams.original()] * 8),
+            batch = Batch(config, seeds, stack_rows(mps),
                           Target.stack([config.task.target] * 8), d, {"seeds": seeds})
             carry = batch.train(progress=False)[0]
         by_key = {s: r for r, s in enumerate(seeds)}
@@ -42,7 +51,7 @@ def main() -> None:
                        for s, r in by_key.items()})
     common = sorted(set(states[0]) & set(states[1]))
     differ = [s for s in common if any(np.any(a != b) for a, b in zip(states[0][s], states[1][s]))]
-    print(f"{args.arm}, {args.train_s:g} s, compare {args.compare}: keys in both batches {common}; "
+    print(f"{args.arm}, {args.target}, {args.preset or 'original'}, {args.train_s:g} s, compare {args.compare}: keys in both batches {common}; "
           f"whole training state differs for {differ or 'none'}")
 
 
