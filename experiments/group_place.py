@@ -51,8 +51,8 @@ def main() -> None:
                        for s, r in by_key.items()})
     common = sorted(set(states[0]) & set(states[1]))
     differ = [s for s in common if any(np.any(a != b) for a, b in zip(states[0][s], states[1][s]))]
-    print(f"{args.arm}, {args.target}, {args.preset or 'original'}, {args.train_s:g} s, compare {args.compare}: keys in both batches {common}; "
-          f"whole training state differs for {differ or 'none'}")
+    print(f"{args.arm}, {args.target}, {args.preset or 'original'}, {args.train_s:g} s, compare {args.compare}: "
+          f"keys in both batches {common}; whole training state differs for {differ or 'none'}")
 
 
 if __name__ == "__main__":

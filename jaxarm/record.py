@@ -232,7 +232,8 @@ def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms:
     n_all = int(pop_stop[-1])
     steps_per_interval = round(interval_ms / dt_ms)
     earlier = earlier or {}
-    out: dict[str, Any] = {"windows": np.asarray(list(windows) + list(earlier)), "seeds": np.asarray(seeds)[list(networks)],
+    out: dict[str, Any] = {"windows": np.asarray(list(windows) + list(earlier)),
+                           "seeds": np.asarray(seeds)[list(networks)],
                            "networks": np.asarray(networks, np.int32), "dt_ms": np.float64(dt_ms),
                            "interval_ms": np.float64(interval_ms), "n_all": np.int32(n_all),
                            "populations": np.asarray(populations), "pop_start": np.asarray(pop_start, np.int32),

@@ -136,8 +136,8 @@ def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
 
     fns = make_centre_out_train(config, task)
     keys = network_keys(seeds)
-    # over every device of this process, in groups of networks_at_once: a network's result is the same bits
-    # whatever the number of seeds beside it and the devices
+    # over every device of this process, in groups of networks_at_once, as `jaxarm train` runs its batches: the
+    # same bits on any device count and batch size (docs/scaling.md, "Known limit", for another batch's rows)
     m = parallel.mesh() if jax.process_count() == 1 else None
     over_networks = lambda fn: jax.jit(parallel.sharded_map(fn, m))   # noqa: E731
     trained, history = over_networks(lambda k: fns.train(k, mp))(keys)
