@@ -24,7 +24,8 @@ BATCHES = {"place": ([0, 1, 2, 3, 4, 5, 6, 7], [4, 5, 6, 7, 0, 1, 2, 3]),
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="musculoskeletal")
-    ap.add_argument("--train-s", type=float, default=10.0, help="one epoch of this many seconds (s)")
+    ap.add_argument("--train-s", type=float, default=10.0, help="each epoch this many seconds (s)")
+    ap.add_argument("--epochs", type=int, default=1)
     ap.add_argument("--compare", choices=tuple(BATCHES), default="place")
     ap.add_argument("--target", choices=("left", "bottom"), default="left")
     ap.add_argument("--preset", default=None, help="key k trains with this preset's top[k] (default: the authors')")
@@ -36,8 +37,8 @@ def main() -> None:
     from jaxarm.run import Batch, stack_rows
     from jaxarm.task.config import Target, TaskConfig
 
-    config = LoopConfig(arm=args.arm, task=TaskConfig(target=args.target, epochs=1, epoch_duration_s=args.train_s,
-                                                      test_duration_s=0.2))
+    task = TaskConfig(target=args.target, epochs=args.epochs, epoch_duration_s=args.train_s, test_duration_s=0.2)
+    config = LoopConfig(arm=args.arm, task=task)
     top = presets.load(args.preset).top_metaparams() if args.preset else None
     states = []
     for seeds in BATCHES[args.compare]:
@@ -51,8 +52,8 @@ def main() -> None:
                        for s, r in by_key.items()})
     common = sorted(set(states[0]) & set(states[1]))
     differ = [s for s in common if any(np.any(a != b) for a, b in zip(states[0][s], states[1][s]))]
-    print(f"{args.arm}, {args.target}, {args.preset or 'original'}, {args.train_s:g} s, compare {args.compare}: "
-          f"keys in both batches {common}; whole training state differs for {differ or 'none'}")
+    print(f"{args.arm}, {args.target}, {args.preset or 'original'}, {args.epochs} x {args.train_s:g} s, "
+          f"compare {args.compare}: keys in both batches {common}; whole training state differs for {differ or 'none'}")
 
 
 if __name__ == "__main__":

@@ -20,8 +20,8 @@ Set-up, once per process and before JAX computes anything (:func:`start`; the co
 Each device runs its share in groups of :func:`networks_at_once` networks (8 on CPUs), one group after the other, and
 a batch is padded to whole groups on every device (:func:`padded_size`): the extra members are computed and dropped
 by the caller, never counted. Every network is then computed by the same program whatever the layout. (The same
-network at another row of another batch has been seen to round differently in the last bit; cause not yet found:
-docs/scaling.md, "Known limit".)
+network at another place within its group has been seen to round differently in the last bit, places 0 and 4 after
+minutes of training; the operation is not yet found: docs/scaling.md, "Known limit".)
 """
 from __future__ import annotations
 
