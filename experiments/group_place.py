@@ -47,9 +47,8 @@ def main() -> None:
             batch = Batch(config, seeds, stack_rows(mps),
                           Target.stack([config.task.target] * 8), d, {"seeds": seeds})
             carry = batch.train(progress=False)[0]
-        by_key = {s: r for r, s in enumerate(seeds)}
-        states.append({s: [np.asarray(parallel.host(x))[r] for x in jax.tree.leaves(carry)]
-                       for s, r in by_key.items()})
+        leaves = [np.asarray(x) for x in jax.tree.leaves(parallel.host(carry))]
+        states.append({s: [x[r] for x in leaves] for r, s in enumerate(seeds)})
     common = sorted(set(states[0]) & set(states[1]))
     differ = [s for s in common if any(np.any(a != b) for a, b in zip(states[0][s], states[1][s]))]
     print(f"{args.arm}, {args.target}, {args.preset or 'original'}, {args.epochs} x {args.train_s:g} s, "

@@ -203,7 +203,8 @@ def sharded_map(fn: Callable, m: Mesh | None = None, at_once: int | None = None)
     is given (else on the default device), each device's share in groups of ``at_once`` networks (default
     :func:`networks_at_once`; 0: one ``vmap``). Rows are padded to whole groups on every device (with copies of the
     last row) and the padding dropped from the result, so a row's result is the same bits whatever the batch size
-    and layout. The result is whole (replicated) on every device of ``m``."""
+    and layout (at the same place in its group: docs/scaling.md, "Known limit"). The result is whole (replicated)
+    on every device of ``m``."""
     at_once = networks_at_once() if at_once is None else at_once
     local = map_networks(fn, at_once)
 
