@@ -22,6 +22,7 @@ draw them.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from dataclasses import asdict
 from pathlib import Path
@@ -33,7 +34,6 @@ from jaxarm import parallel
 from jaxarm.analysis.reach import reach_metrics
 from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.validate import ConfigError
-from jaxarm.learning.gradient import differentiable_config
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig
@@ -90,7 +90,8 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
     target = np.asarray(task.target_xy_m, np.float32)
     seeds = run.seeds
     m_tr, m_nv = _metrics(trained_res, target, dt), _metrics(naive_res, target, dt)
-    hist = {k: np.asarray(v) for k, v in history._asdict().items()}
+    steps = history.gradient_steps       # gradient learning: (epochs, networks, steps per epoch) per field
+    hist = {k: np.asarray(v) for k, v in history._asdict().items() if k != "gradient_steps"}
     spec = run.config.network.spec
     pop_names, pathways = spec.network_populations, spec.pathways
     results = {
@@ -110,7 +111,10 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
             "rewards": hist["rewards"].sum(axis=1).tolist(),
             "punishments": hist["punishments"].sum(axis=1).tolist(),
             "lost_spikes": int(hist["lost_spikes"].sum()),
-        },
+        } | ({} if steps is None else {"gradient": {
+            "loss_m": np.asarray(steps.loss_m).mean(axis=(1, 2)).round(5).tolist(),
+            "grad_norm": np.median(np.asarray(steps.grad_norm), axis=(1, 2)).round(5).tolist(),
+            "skipped_steps": (~np.asarray(steps.finite)).sum(axis=(1, 2)).tolist()}}),
         "test_rates_hz": {p: float(np.asarray(trained_res.rates_hz)[:, j].mean().round(3))
                           for j, p in enumerate(pop_names)},
         "timing": {"train_wall_s_this_invocation": round(wall_s, 2), "epochs_run_this_invocation": epochs_run,
@@ -128,7 +132,9 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
     # per network and epoch (results.json holds the means): what a comparison with the original's one network needs
     np.savez_compressed(run.out / "history.npz", seeds=np.asarray(seeds), populations=np.asarray(pop_names),
                         pathways=np.asarray([pw.name for pw in pathways]),
-                        **{k: v for k, v in hist.items() if k != "lost_spikes"})
+                        **{k: v for k, v in hist.items() if k != "lost_spikes"},
+                        **({} if steps is None else {f"gradient_{k}": np.asarray(v)
+                                                     for k, v in steps._asdict().items()}))
     t = np.arange(trained_res.hand_m.shape[1]) * dt
     np.savez_compressed(run.out / "trajectories.npz", t=t, q=np.asarray(trained_res.q_rad),
                         hand=np.asarray(trained_res.hand_m), u=np.asarray(trained_res.u),
@@ -293,8 +299,8 @@ def _configs(args) -> list[tuple[str, LoopConfig]]:
                           test_duration_s=args.test_s, test_em_noise_events=args.test_em_noise_events)
         cfg = LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task)
         if getattr(args, "learning", "rstdp") == "gradient":
-            cfg = differentiable_config(cfg, GradientConfig(learning_rate=args.gradient_lr, reach_s=args.reach_s,
-                                                            params=args.gradient_params))
+            cfg = dataclasses.replace(cfg, gradient=GradientConfig(learning_rate=args.gradient_lr,
+                                                                   reach_s=args.reach_s, params=args.gradient_params))
         out.append((target, cfg))
     return out
 
@@ -385,7 +391,6 @@ def train_main(argv: list[str] | None = None) -> int:
 
 def _centre_out_main(ap, args) -> int:
     """``jaxarm train --task centre-out-8``: train and test in one batch, write results.json and trajectories.npz."""
-    import dataclasses
     import time
 
     from jaxarm.task.centre_out import CentreOut, ensure_target_code, train_and_test
@@ -495,8 +500,8 @@ def test_main(argv: list[str] | None = None) -> int:
     network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
                              | ({"crossing": args.crossing} if args.crossing else {}))
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
-    if "learning" in meta:   # trained by gradient: the same network forward, its checkpoint holds Adam's state too
-        cfg = differentiable_config(cfg, GradientConfig(**meta["learning"]))
+    if "learning" in meta:   # trained by gradient: tested as R-STDP's; its checkpoint holds Adam's state too
+        cfg = dataclasses.replace(cfg, gradient=GradientConfig(**meta["learning"]))
     out = args.out or args.src / "test"
     try:
         if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)

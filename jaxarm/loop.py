@@ -59,8 +59,8 @@ class LoopConfig:
         plasticity: False freezes the weights in training (babbling still runs): a control condition.
         gradient: None (default): training is R-STDP with babbling, the paper's; a
             :class:`~jaxarm.config.gradient.GradientConfig`: the gains are trained by gradient descent through the
-            loop instead (:mod:`jaxarm.learning.gradient`; build it with
-            :func:`jaxarm.learning.gradient.differentiable_config`).
+            loop instead (:mod:`jaxarm.learning.gradient`, which trains on its differentiable version of this
+            configuration and tests on this one).
         smooth_arm: the musculoskeletal arm's C-infinity formulation (``make_arm(..., smooth=True)``), for
             gradients through the loop (``docs/gradients.md``); the simple arm is smooth already.
         critic_error: what the critic compares 10 ms apart: "xy" (the original's training setting, XYERR: the

@@ -303,8 +303,7 @@ class Batch:
                 summary = jax.tree.map(lambda x: x[: self.n], parallel.host(summary))
                 wall += time.perf_counter() - t0
                 self.check_capacity(summary.lost_spikes, f"training epoch {e + 1}")
-                for h, s in zip(history, summary):
-                    h[e] = s
+                jax.tree.map(lambda h, s: h.__setitem__(e, s), history, summary)
                 if test_each_epoch:
                     self.learning_curve[e + 1] = summarise(self.test(carry.trained, f"test after epoch {e + 1}"))
                 ckpt.save(e + 1, (carry, parallel.put(history, parallel.REPLICATED, self.mesh)),

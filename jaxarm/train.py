@@ -54,6 +54,8 @@ class EpochSummary(NamedTuple):
     rewards: jnp.ndarray           # () critic rewards in the epoch
     punishments: jnp.ndarray       # () critic punishments
     lost_spikes: jnp.ndarray       # () spike-list overflow (must be 0)
+    #: gradient learning only: every step of the epoch (jaxarm.learning.gradient.StepSummary, leading axis = step)
+    gradient_steps: Any = None
 
 
 class TestResult(NamedTuple):
@@ -87,6 +89,9 @@ class TrainFns(NamedTuple):
     #: gradient learning only (``LoopConfig.gradient``): (carry, mp, target, k) -> (carry, (StepSummary, counts)),
     #: the k-th gradient step (jaxarm.learning.gradient)
     step: Callable | None = None
+    #: gradient learning only: (gains, trained, mp, noise_key[, target]) -> (mean hand-target distance of one reach,
+    #: m; (min, final distance, spike counts)), the loss a step differentiates (gains: the first n trained gains)
+    reach_loss: Callable | None = None
 
 
 def _pop_rates(loop: ClosedLoop, counts, seconds):

@@ -14,7 +14,6 @@ from jaxarm.config.network import NetworkConfig
 from jaxarm.config.validate import ConfigError
 from jaxarm.experiment import test_main as retest_main
 from jaxarm.experiment import train_main
-from jaxarm.learning.gradient import differentiable_config
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
 from jaxarm.network import readout as ro
@@ -56,7 +55,7 @@ def test_bad_gradient_settings_are_one_line_errors():
         GradientConfig(learning_rate=-1.0)
     with pytest.raises(ConfigError, match="LoopConfig.gradient"):
         LoopConfig(gradient={"learning_rate": 0.1})
-    cfg = differentiable_config(LoopConfig(task=TaskConfig(epochs=1, epoch_duration_s=2.0)), GradientConfig(reach_s=0.3))
+    cfg = LoopConfig(task=TaskConfig(epochs=1, epoch_duration_s=2.0), gradient=GradientConfig(reach_s=0.3))
     with pytest.raises(ConfigError, match="reach_s"):
         make_train(cfg)
 
@@ -131,7 +130,7 @@ def test_readout_and_arm_gradient_matches_richardson_differences(kind):
         h = 1e-3
         ref = (4 * fd(h / 2) - fd(h)) / 3
     assert np.linalg.norm(ref) > 1e-4                           # the counts move the hand
-    assert np.linalg.norm(ad - ref) <= 0.05 * np.linalg.norm(ref), (ad, ref)
+    assert np.linalg.norm(ad - ref) <= 1e-3 * np.linalg.norm(ref), (ad, ref)
 
 
 def test_train_by_gradient_then_retest_from_the_folder(tmp_path, capsys):
@@ -141,8 +140,16 @@ def test_train_by_gradient_then_retest_from_the_folder(tmp_path, capsys):
     args = ["--learning", "gradient", "--networks", "1", "--epochs", "1", "--epoch-s", "2", "--no-progress"]
     assert train_main(args + ["--out", str(out)]) == 0
     res = json.loads((out / "results.json").read_text())
-    assert res["config"]["learning"] == dataclasses.asdict(GradientConfig()) and res["config"]["kernel"] == "xla"
+    # tested as R-STDP's networks are: the configuration's kernel (native where it is built), not the training's XLA
+    from jaxarm.network import native
+    assert res["config"]["learning"] == dataclasses.asdict(GradientConfig())
+    assert res["config"]["kernel"] == ("native" if native.available() else "xla")
     assert res["history"]["rewards"] == [0] and res["history"]["lost_spikes"] == 0
+    # every step's loss, gradient norm and skip are kept: two steps, finite, losses in metres
+    steps = np.load(out / "history.npz")
+    assert steps["gradient_loss_m"].shape == (1, 1, 2) and steps["gradient_finite"].all()
+    assert 0.0 < steps["gradient_loss_m"].min() < 0.5 and np.all(steps["gradient_grad_norm"] > 0)
+    assert res["history"]["gradient"]["skipped_steps"] == [0]
     assert retest_main(["--from", str(out)]) == 0
     again = json.loads((out / "test" / "results.json").read_text())
     assert again["networks"][0]["min_distance_m"] == res["networks"][0]["min_distance_m"]
@@ -179,8 +186,7 @@ def test_surrogate_gradient_points_up_the_noise_averaged_spike_count():
 @pytest.mark.slow
 def test_gradient_steps_bring_the_hand_closer():
     # Two networks, six 1 s reaches each on the simple arm (measured: mean distance 15.0 -> 9.1 cm).
-    cfg = differentiable_config(LoopConfig(task=TaskConfig(epochs=1, epoch_duration_s=6.0)), GradientConfig())
-    fns = make_train(cfg)
+    fns = make_train(LoopConfig(task=TaskConfig(epochs=1, epoch_duration_s=6.0), gradient=GradientConfig()))
     mp = MetaParams.original()
     keys = jax.random.split(jax.random.key(0), 2)
 
@@ -192,6 +198,52 @@ def test_gradient_steps_bring_the_hand_closer():
     loss = np.asarray(summary.loss_m)
     assert np.all(np.asarray(summary.finite))
     assert np.all(loss[:, -1] < 0.8 * loss[:, 0]), loss
+
+
+def test_no_training_reach_is_scored_on_the_test_noise():
+    # Before issue 46 every training reach restarted the network's own noise stream, the one the test restarts: the
+    # first reach of an untrained network *was* its naive test (the same start, noise, target, length). Now each
+    # reach draws a stream of its own. On the simple arm and the XLA kernel the forward passes are the same code, so
+    # the first reach's closing distance would equal the test's to the bit if the noise were shared.
+    task = TaskConfig(epochs=1, epoch_duration_s=0.6, test_duration_s=0.3)
+    cfg = LoopConfig(network=NetworkConfig(kernel="xla"), task=task, gradient=GradientConfig(reach_s=0.3))
+    fns = make_train(cfg)
+    mp = MetaParams.original()
+    keys = jax.random.split(jax.random.key(3), 3)
+
+    def first_reach_and_test(key):
+        carry = fns.init(key)
+        _, (summary, _) = fns.step(carry, mp, None, 0)
+        _, (second, _) = fns.step(carry, mp, None, 1)
+        test = fns.test(key, carry.trained, mp)
+        # the test's own noise through the training loss reproduces the test: the comparison is sharp
+        same_noise = fns.reach_loss(carry.trained.wgain[: fns.loop.net.layout.n_plastic], carry.trained, mp,
+                                    carry.trained.noise_key)[1][1]
+        return summary.final_distance_m, second.final_distance_m, test.final_distance_m, same_noise
+
+    first, second, test, same_noise = (np.asarray(x) for x in jax.jit(jax.vmap(first_reach_and_test))(keys))
+    np.testing.assert_array_equal(same_noise, test)
+    assert np.all(first != test) and np.all(second != test) and np.all(first != second), (first, second, test)
+
+
+@pytest.mark.parametrize("arm", ["simple", "musculoskeletal"])
+def test_gradient_networks_are_tested_by_rstdps_test_on_the_published_arm(arm):
+    # The same trained networks through gradient learning's test and R-STDP's (make_train without gradient, the
+    # default kernel, the published arm): the same bits. Training runs the smooth arm and the XLA kernel; the test
+    # does not.
+    task = TaskConfig(epochs=1, epoch_duration_s=0.2, test_duration_s=0.2)
+    grad_fns = make_train(LoopConfig(arm=arm, task=task, gradient=GradientConfig(reach_s=0.2)))
+    rstdp_fns = make_train(LoopConfig(arm=arm, task=task))
+    assert grad_fns.loop.config.smooth_arm == (arm == "musculoskeletal")
+    assert grad_fns.loop.config.network.kernel == "xla"
+    mp = MetaParams.original()
+    key = jax.random.key(2)
+    trained = grad_fns.init(key).trained._replace(
+        wgain=jnp.asarray(np.random.default_rng(0).uniform(0.5, 2.0, grad_fns.loop.net.layout.n_syn), jnp.float32))
+    a = jax.jit(grad_fns.test)(key, trained, mp)
+    b = jax.jit(rstdp_fns.test)(key, trained, mp)
+    for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
 
 
 def test_the_comparison_trains_each_headline_preset_as_reproduce_does(tmp_path):

@@ -1,10 +1,9 @@
 """Gradient learning on the reaching task: the same network, arm and test as R-STDP, the gains trained by Adam on
 the reaching loss through the closed loop (network -> readout -> arm -> distance to target).
 
-    config = differentiable_config(LoopConfig(arm="simple"), GradientConfig())
-    fns = make_train(config)                        # jaxarm.train.make_train: the same TrainFns as R-STDP's
+    fns = make_train(LoopConfig(arm="simple", gradient=GradientConfig()))   # the same TrainFns as R-STDP's
     trained, history = jax.jit(fns.train)(key, MetaParams.original())
-    result = jax.jit(fns.test)(key, trained, MetaParams.original())      # the R-STDP protocol's test, unchanged
+    result = jax.jit(fns.test)(key, trained, MetaParams.original())      # R-STDP's test, the same code
 
 How it differs from R-STDP training (and why):
 
@@ -15,9 +14,14 @@ How it differs from R-STDP training (and why):
   (no babbling: the gradient, not noise, explores), and descends the mean hand-target distance (m) over it. An
   epoch of ``epoch_duration_s`` holds ``epoch_duration_s / reach_s`` steps, so the budget in network-seconds is
   the R-STDP protocol's and ``jaxarm train`` checkpoints and resumes by epoch as it does for R-STDP;
-* every reach's background noise is the network's own stream restarted, as the original restarts it for every
-  epoch and for the test; ``LoopConfig.reseed_noise_each_epoch`` = True draws a new stream for every step, so the
-  test's stream is never trained on;
+* every training reach has background noise of its own, drawn from the network's noise key in a domain of its own
+  (:data:`TRAIN_NOISE_FOLD`, then the step number), so no reach is trained on the noise of any test: not the test's
+  (the key itself, restarted as the original does) nor the fresh-noise re-tests' (the key folded with 1000 + j);
+* the test is R-STDP's, the same code on the same configuration: the published arm (not the smooth one the
+  gradient trains through) and the configuration's kernel (``config.network.kernel``, native by default), so the
+  two rules' networks are scored alike;
+* the history keeps every step's loss, gradient norm and whether it was skipped (:class:`StepSummary`, in
+  ``EpochSummary.gradient_steps``);
 * the gains stay in R-STDP's range: plastic E->E in [0, plast_ee_maxw], E->I in [0, plast_ei_maxw]; with
   ``params = "all"`` every synapse's gain but P->ES is trained, in [0, plast_ee_maxw].
 """
@@ -36,6 +40,10 @@ from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
 from jaxarm.task.config import Target
+
+
+#: What a training reach's noise key is folded with before its step number: a domain no test key is drawn from.
+TRAIN_NOISE_FOLD = 0x67726164   # "grad"
 
 
 class GradientCarry(NamedTuple):
@@ -57,25 +65,36 @@ class StepSummary(NamedTuple):
     finite: jnp.ndarray            # () bool: the gradient was finite (else the step was skipped)
 
 
-def differentiable_config(config: LoopConfig, grad: GradientConfig = GradientConfig()) -> LoopConfig:
-    """``config`` trained by gradient: surrogate spikes (XLA kernel), the smooth musculoskeletal arm, ``grad``."""
+def differentiable_config(config: LoopConfig, grad: GradientConfig | None = None) -> LoopConfig:
+    """The loop gradient training runs (``grad``, default ``config.gradient`` or ``GradientConfig()``): surrogate
+    spikes (XLA kernel) and the smooth musculoskeletal arm. Not the test's: that is :func:`published_config`."""
+    grad = grad or config.gradient or GradientConfig()
     network = dataclasses.replace(config.network, spike_gradient="fast_sigmoid", surrogate_width_mv=grad.width_mv,
                                   surrogate_scale=grad.scale, kernel="xla")
     return dataclasses.replace(config, network=network, smooth_arm=config.arm == "musculoskeletal", gradient=grad)
 
 
+def published_config(config: LoopConfig) -> LoopConfig:
+    """The loop every network is tested on, whatever trained it: no gradient, spikes without surrogate, the
+    published arm, the configuration's kernel."""
+    network = dataclasses.replace(config.network, spike_gradient="none")
+    return dataclasses.replace(config, network=network, smooth_arm=False, gradient=None)
+
+
 def make_gradient_train(config: LoopConfig, record=None):
     """:func:`jaxarm.train.make_train` for a ``config`` with ``gradient`` set (it calls this): the same
-    :class:`~jaxarm.train.TrainFns` (init, epoch, train, test), with gradient epochs (see the module docstring),
-    and ``step(carry, mp, target, k)`` -> (carry, (StepSummary, spike counts)), the k-th gradient step alone."""
+    :class:`~jaxarm.train.TrainFns` (init, epoch, train, test), with gradient epochs (see the module docstring)
+    and R-STDP's test on :func:`published_config`, and ``step(carry, mp, target, k)`` -> (carry, (StepSummary,
+    spike counts)), the k-th gradient step alone."""
     from jaxarm.train import EpochSummary, TrainFns, _pop_rates, make_train, mean_gain_per_pathway
 
     grad = config.gradient
+    tested = make_train(published_config(config), record)
     config = differentiable_config(config, grad)
     if record is not None and record.train_last_s > 0:
         raise ConfigError("--record-train-s with gradient learning: training runs reaches, not recorded epochs "
                           "(record the test only)")
-    base = make_train(dataclasses.replace(config, gradient=None), record)
+    base = make_train(dataclasses.replace(config, gradient=None))
     loop, task = base.loop, config.task
     reach = round(grad.reach_s / task.update_interval_s)
     per_epoch = round(task.epoch_duration_s / grad.reach_s)
@@ -99,11 +118,9 @@ def make_gradient_train(config: LoopConfig, record=None):
         trained = base.init(key).trained
         return GradientCarry(trained, optimiser.init(trained.wgain[:n_train]), jnp.zeros((), jnp.int32))
 
-    def reach_loss(gains, trained, mp: MetaParams, step, target: Target | None):
-        """Mean hand-target distance (m) of one reach with these trained gains; aux: (min, final distance, spike
-        counts (n_all,))."""
-        noise_key = jax.random.fold_in(trained.noise_key, step) if config.reseed_noise_each_epoch \
-            else trained.noise_key
+    def reach_loss(gains, trained, mp: MetaParams, noise_key, target: Target | None = None):
+        """Mean hand-target distance (m) of one reach with background noise ``noise_key`` and the first
+        ``n_train`` gains replaced by ``gains``; aux: (min, final distance, spike counts (n_all,))."""
         state = loop.init(noise_key, trained.wgain.at[:n_train].set(gains), trained.babble,
                           bab.em_noise_rates_in_test(mp), target)
         # the loop's keys feed babbling only, which a reach without learning does not use
@@ -113,8 +130,9 @@ def make_gradient_train(config: LoopConfig, record=None):
 
     def step(carry: GradientCarry, mp: MetaParams, target: Target | None, k):
         trained = carry.trained
+        noise_key = jax.random.fold_in(jax.random.fold_in(trained.noise_key, TRAIN_NOISE_FOLD), k)
         (value, (closest, final, counts)), g = jax.value_and_grad(reach_loss, has_aux=True)(
-            trained.wgain[:n_train], trained, mp, k, target)
+            trained.wgain[:n_train], trained, mp, noise_key, target)
         updates, opt_state = optimiser.update(g, carry.opt_state)   # zero updates on a skipped step
         w = jnp.clip(optax.apply_updates(trained.wgain[:n_train], updates), 0.0, upper(mp))
         carry = carry._replace(trained=trained._replace(wgain=trained.wgain.at[:n_train].set(w)),
@@ -131,11 +149,12 @@ def make_gradient_train(config: LoopConfig, record=None):
             rates_last10s_hz=_pop_rates(loop, counts[-last10:].sum(0), last10 * grad.reach_s),
             mean_wgain=mean_gain_per_pathway(layout, wgain), final_distance_m=steps.final_distance_m[-1],
             min_distance_m=steps.min_distance_m.min(), rewards=jnp.zeros((), jnp.int32),
-            punishments=jnp.zeros((), jnp.int32), lost_spikes=jnp.zeros((), jnp.int32))
+            punishments=jnp.zeros((), jnp.int32), lost_spikes=jnp.zeros((), jnp.int32), gradient_steps=steps)
         return carry._replace(epoch=carry.epoch + 1), summary
 
     def train(key, mp: MetaParams, target: Target | None = None):
         carry, history = jax.lax.scan(lambda c, _: epoch(c, mp, target), init(key), None, length=task.epochs)
         return carry.trained, history
 
-    return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=base.test, record=record, step=step)
+    return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=tested.test, record=record, step=step,
+                    reach_loss=reach_loss)

@@ -298,20 +298,37 @@ class Network:
         return state._replace(ring=ring, pdope_ms=pdope_ms, counters=counters), spikes
 
     def _block_dense(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):
-        """:meth:`_block` with surrogate spikes and dense delivery (:attr:`differentiable`); the same state."""
+        """:meth:`_block` with surrogate spikes and dense delivery (:attr:`differentiable`); the same state.
+
+        Delivery is once per block, so each cell's surrogate derivatives of the block's steps leave at one step: its
+        spike step if it fired, else the step at which its margin was closest to threshold (the largest surrogate
+        density). A step's derivative therefore arrives at most ``block_steps - 1`` steps from where per-step
+        delivery would put it, and exactly there with ``NetworkConfig.block_steps = 1`` (measured against it in
+        ``experiments/surrogate_gradient.py``)."""
         n = self.config.n_cells
+        c = self.cell_constants
 
         def body(carry, _):
-            s, spike_step, value = carry
+            s, spike_step, value, near_step, nearest = carry
             s, spike_step, spiked = self._cell_step(s, spike_step)
+            # the surrogate density is largest where |Vm - VTHC| is smallest (cells outside refractoriness)
+            margin = jnp.abs(cell_mod.membrane_potential(s.cells, c, self.config.spec.physics)
+                             - (c.vth + s.cells.vthc_excess))
+            margin = jnp.where(s.cells.steps_since_spike >= c.n_refractory, margin, jnp.inf)
+            closer = margin < nearest
+            near_step = jnp.where(closer, s.step, near_step)
             # a cell fires at most once per block: the sum is its spike, and the sum of its surrogates backward
-            return (s, spike_step, value + spiked[:n]), (spiked if collect else None)
+            return (s, spike_step, value + spiked[:n], near_step, jnp.minimum(margin, nearest)), (
+                spiked if collect else None)
 
-        (state, spike_step, value), spikes = jax.lax.scan(
-            body, (state, jnp.full((n,), -1, jnp.int32), jnp.zeros((n,), jnp.float32)), None, length=n_steps)
+        first = jnp.full((n,), state.step + 1, jnp.int32)
+        (state, spike_step, value, near_step, _), spikes = jax.lax.scan(
+            body, (state, jnp.full((n,), -1, jnp.int32), jnp.zeros((n,), jnp.float32), first,
+                   jnp.full((n,), jnp.inf, jnp.float32)), None, length=n_steps)
         ring, pdope_ms = syn_mod.deliver_block_dense(
-            state.ring, state.pdope_ms, spike_step, value, state.last_spike_ms, state.prev_spike_ms, wiring,
-            state.wgain, params.max_plast_t_ms, self.delivery_shape, self.config.dt_ms)
+            state.ring, state.pdope_ms, jnp.where(spike_step >= 0, spike_step, near_step), value,
+            state.last_spike_ms, state.prev_spike_ms, wiring, state.wgain, params.max_plast_t_ms,
+            self.delivery_shape, self.config.dt_ms)
         return state._replace(ring=ring, pdope_ms=pdope_ms), spikes
 
     def _chunk(self, wiring: Wiring, state: State, params: NetworkParams, n_steps: int, collect: bool):

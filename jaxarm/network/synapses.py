@@ -181,20 +181,22 @@ def _deliver_rows(ring, pdope_ms, net, cell, s, value, last_spike_ms, prev_spike
     return ring, pdope_ms
 
 
-def deliver_block_dense(ring, pdope_ms, spike_step, spike_value, last_spike_ms, prev_spike_ms, wiring: Wiring, wgain,
-                        window_ms, shape: DeliveryShape, dt_ms: float):
+def deliver_block_dense(ring, pdope_ms, delivery_step, spike_value, last_spike_ms, prev_spike_ms, wiring: Wiring,
+                        wgain, window_ms, shape: DeliveryShape, dt_ms: float):
     """:func:`deliver_block` for differentiation (``NetworkConfig.spike_gradient``), of one network (plain
     ``vmap`` for many): every cell's row is written, its weights times its spike ``spike_value`` (n_cells,)
     float32 (1.0 or 0.0 forward, a surrogate derivative backward), so a cell that did not fire passes on the
-    derivative of its threshold. Rows that did not fire add exact zeros and the fired rows are added in the order
-    of the spike lists (ascending cell), so the ring, and every spike after it, is bit for bit the same as with
-    spike lists. Work: every synapse of the network per block, not only those of the spikes. Returns (ring,
-    pdope_ms)."""
+    derivative of its threshold. ``delivery_step`` (n_cells,) int32: the step each cell's row leaves at, its spike
+    step if it fired, else the step its derivative belongs to (a step of this block, never a fixed one: the
+    derivative arrives at that step + the synapse's delay). Rows that did not fire add exact zeros and the fired
+    rows are added in the order of the spike lists (ascending cell), so the ring, and every spike after it, is bit
+    for bit the same as with spike lists. Work: every synapse of the network per block, not only those of the
+    spikes. Returns (ring, pdope_ms)."""
     ring, pdope_ms = ring[None], pdope_ms[None]
-    for g, (tables, steps, values) in enumerate(zip(wiring.groups, _group_values(spike_step, shape),
+    for g, (tables, steps, values) in enumerate(zip(wiring.groups, _group_values(delivery_step, shape),
                                                     _group_values(spike_value, shape))):
         cell = jnp.arange(steps.shape[-1])
-        ring, pdope_ms = _deliver_rows(ring, pdope_ms, jnp.zeros_like(cell), cell, jnp.maximum(steps, 0), values,
+        ring, pdope_ms = _deliver_rows(ring, pdope_ms, jnp.zeros_like(cell), cell, steps, values,
                                        last_spike_ms[None], prev_spike_ms[None], wgain[None],
                                        jnp.asarray(window_ms, jnp.float32)[None], tables, False, g, shape, dt_ms)
     return ring[0], pdope_ms[0]
