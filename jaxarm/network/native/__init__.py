@@ -70,19 +70,21 @@ def _compiler() -> str | None:
 
 
 @functools.lru_cache(maxsize=None)
-def _build() -> tuple[str | None, str]:
+def _build(profile: bool = False) -> tuple[str | None, str]:
     """(path of the shared library or None, reason). Builds once per source/jaxlib/CPU; atomic, so concurrent
-    processes are safe."""
+    processes are safe. ``profile``: the library with phase timers (``-DJAXARM_PROFILE``), a file of its own."""
     cxx = _compiler()
     if cxx is None:
         return None, "no C++ compiler found (set $CXX)"
     import jaxlib
 
+    flags = CXX_FLAGS + (("-DJAXARM_PROFILE",) if profile else ())
     with open(SOURCE, "rb") as f:
         src = f.read()
-    key = hashlib.sha256(src + repr((jaxlib.__version__, CXX_FLAGS, cxx, _cpu_signature())).encode()).hexdigest()[:16]
+    key = hashlib.sha256(src + repr((jaxlib.__version__, flags, cxx, _cpu_signature())).encode()).hexdigest()[:16]
     folder = cache_dir()
-    path = os.path.join(folder, f"chunk_kernel-{key}.so")
+    stem = "chunk_kernel_profile" if profile else "chunk_kernel"
+    path = os.path.join(folder, f"{stem}-{key}.so")
     if os.path.exists(path):
         return path, "cached"
     try:
@@ -91,12 +93,12 @@ def _build() -> tuple[str | None, str]:
     except OSError:  # an unwritable home: build into the temporary folder instead
         folder = os.path.join(tempfile.gettempdir(), "jaxarm-native")
         os.makedirs(folder, exist_ok=True)
-        path = os.path.join(folder, f"chunk_kernel-{key}.so")
+        path = os.path.join(folder, f"{stem}-{key}.so")
         if os.path.exists(path):
             return path, "cached"
         fd, tmp = tempfile.mkstemp(suffix=".so", dir=folder)
     os.close(fd)
-    cmd = [cxx, *CXX_FLAGS, "-w", "-I", jax.ffi.include_dir(), SOURCE, "-o", tmp]
+    cmd = [cxx, *flags, "-w", "-I", jax.ffi.include_dir(), SOURCE, "-o", tmp]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     except (OSError, subprocess.TimeoutExpired) as e:
@@ -109,17 +111,52 @@ def _build() -> tuple[str | None, str]:
     return path, "built"
 
 
+_PROFILE = {"on": False, "lib": None}
+#: Phases of the profiling build's timers (chunk_kernel.cc, namespace prof), in its order.
+PROFILE_PHASES = ("copy_in", "p_window", "noise", "cell_decay", "jumps", "threshold", "spike_bookkeeping",
+                  "delivery", "tags")
+PROFILE_COUNTERS = ("spikes", "synapse_events", "tag_checks", "input_cells", "steps")
+
+
 @functools.lru_cache(maxsize=None)
-def _register() -> tuple[bool, str]:
-    path, why = _build()
+def _register(profile: bool = False) -> tuple[bool, str]:
+    path, why = _build(profile)
     if path is None:
         return False, why
     try:
         lib = ctypes.cdll.LoadLibrary(path)
-        jax.ffi.register_ffi_target(TARGET, jax.ffi.pycapsule(lib.JaxarmNetworkChunk), platform="cpu")
+        jax.ffi.register_ffi_target(TARGET + ("_profile" if profile else ""),
+                                    jax.ffi.pycapsule(lib.JaxarmNetworkChunk), platform="cpu")
+        if profile:
+            _PROFILE["lib"] = lib
     except Exception as e:  # noqa: BLE001 - any loading problem means "not available", with the reason
         return False, f"loading {path} failed: {e}"
     return True, f"{why}: {path}"
+
+
+def enable_profiling(on: bool = True) -> None:
+    """Programs traced from now on call the kernel built with phase timers (one kernel thread only; for
+    ``benchmarks/profile.py``). Read them with :func:`profile_counters`."""
+    if on:
+        ok, why = _register(True)
+        if not ok:
+            raise RuntimeError(f"the profiling build of the native kernel failed: {why}")
+    _PROFILE["on"] = on
+
+
+def profile_counters(reset: bool = True) -> dict:
+    """Seconds per kernel phase and event counts since the last reset (:data:`PROFILE_PHASES`,
+    :data:`PROFILE_COUNTERS`)."""
+    lib = _PROFILE["lib"]
+    if lib is None:
+        raise RuntimeError("enable_profiling() first")
+    buf = (ctypes.c_int64 * (len(PROFILE_PHASES) + len(PROFILE_COUNTERS)))()
+    lib.JaxarmProfileRead(buf)
+    if reset:
+        lib.JaxarmProfileReset()
+    values = list(buf)
+    return {**{p: values[k] * 1e-9 for k, p in enumerate(PROFILE_PHASES)},
+            **{c: values[len(PROFILE_PHASES) + k] for k, c in enumerate(PROFILE_COUNTERS)}}
 
 
 def available() -> bool:
@@ -145,7 +182,8 @@ def _as(x, dtype):
 def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkParams", n_steps: int):
     """``n_steps`` steps of one network (``vmap`` for many) with the native kernel. Returns (state, spikes
     (n_steps, n_all) bool). Same contract as the XLA path's chunk."""
-    ok, why = _register()
+    profile = _PROFILE["on"]
+    ok, why = _register(profile)
     if not ok:
         raise RuntimeError(f"jaxarm native network kernel unavailable: {why}")
     c = net.config
@@ -177,7 +215,7 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
                                                       sds(s.pdope_ms.shape, f32), sds((n_all,), f32),
                                                       sds((n_all,), f32), sds((n_all,), i32),
                                                       sds((3, n), i32), sds((n_steps, n_all), jnp.bool_)]
-    call = jax.ffi.ffi_call(TARGET, out_types, vmap_method="expand_dims", input_output_aliases=ALIASES)
+    call = jax.ffi.ffi_call(TARGET + ("_profile" if profile else ""), out_types, vmap_method="expand_dims", input_output_aliases=ALIASES)
     outs = call(*args, n_steps=np.int64(n_steps), n_slots=np.int64(net.n_slots),
                 sequential=np.int64(c.event_summation == "sequential"),
                 on_event=np.int64(c.threshold_test == "on_event"), per_event=np.int64(c.crossing == "per_event"),

@@ -29,6 +29,44 @@
 
 namespace ffi = xla::ffi;
 
+// Phase timers for benchmarks/profile.py: built only with -DJAXARM_PROFILE (a library of its own, see
+// jaxarm.network.native.enable_profiling); the production build compiles every PROF_ macro to nothing. Not
+// thread-safe: profile with one kernel thread.
+#ifdef JAXARM_PROFILE
+#include <chrono>
+namespace prof {
+enum Phase { kCopyIn, kPWindow, kNoise, kCellDecay, kJumps, kThreshold, kSpikeBookkeeping, kDelivery, kTags,
+             kNumPhases };
+int64_t ns[kNumPhases];
+int64_t spikes, synapse_events, tag_checks, input_cells, steps;
+inline int64_t now() { return std::chrono::steady_clock::now().time_since_epoch().count(); }
+}  // namespace prof
+#define PROF_START int64_t prof_t = prof::now();
+#define PROF_MARK(phase)                  \
+  {                                       \
+    const int64_t prof_n = prof::now();   \
+    prof::ns[prof::phase] += prof_n - prof_t; \
+    prof_t = prof_n;                      \
+  }
+#define PROF_COUNT(counter, k) prof::counter += (k);
+extern "C" void JaxarmProfileRead(int64_t* out) {   // ns per phase, then the five event counters
+  for (int k = 0; k < prof::kNumPhases; ++k) out[k] = prof::ns[k];
+  out[prof::kNumPhases] = prof::spikes;
+  out[prof::kNumPhases + 1] = prof::synapse_events;
+  out[prof::kNumPhases + 2] = prof::tag_checks;
+  out[prof::kNumPhases + 3] = prof::input_cells;
+  out[prof::kNumPhases + 4] = prof::steps;
+}
+extern "C" void JaxarmProfileReset() {
+  for (int k = 0; k < prof::kNumPhases; ++k) prof::ns[k] = 0;
+  prof::spikes = prof::synapse_events = prof::tag_checks = prof::input_cells = prof::steps = 0;
+}
+#else
+#define PROF_START
+#define PROF_MARK(phase)
+#define PROF_COUNT(counter, k)
+#endif
+
 namespace {
 
 // The physics (reversal potentials, Mg block, clamp, jump cap) and the delay packing come from the network spec as
@@ -192,6 +230,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   const int64_t n_plastic = in[kPdope].per_network;
   const int64_t n_psyn = in[kPPre].per_network;
   const int64_t width = 4 * n;
+  PROF_START
 
   // Copy the state into the outputs, then update the outputs in place.
   static const int copies[][2] = {{kAmpa, oAmpa}, {kNmda, oNmda}, {kGabaProx, oGabaProx}, {kGabaDist, oGabaDist},
@@ -277,6 +316,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   const int delay_bits = int(a.delay_bits);
   const int32_t delay_mask = (int32_t(1) << delay_bits) - 1;
 
+  PROF_MARK(kCopyIn)
   // 1. generator (P) input of every generator spike in (first_step, first_step + n_steps].
   {
     const int64_t last_step = int64_t(first_step) + n_steps;
@@ -315,6 +355,8 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   uint8_t* __restrict__ sb = spk_buf.data();
   uint8_t* __restrict__ hb = inp_buf.data();
   const bool limited = any_limited(3 * n, events_left);  // the test's EM noise, or nothing to spend
+  PROF_MARK(kPWindow)
+  PROF_COUNT(steps, n_steps)
   for (int64_t t = 0; t < n_steps; ++t) {
     const int32_t m = first_step + int32_t(t) + 1;
     const float t_ms = float(m) * dt;
@@ -327,6 +369,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     if (limited) spend_budget(3 * n, cb, events_left);
     add_noise(n, cb, noise_w, inb);
     add_noise(2 * n, cb + n, noise_w + n, inb + 2 * n);
+    PROF_MARK(kNoise)
     // 2c. decay, refractory bookkeeping and V (the deviation every driving force of this step uses)
     decay(n, ampa, d_ampa);
     decay(n, nmda, d_nmda);
@@ -337,12 +380,14 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     potential(n, ampa, nmda, gprox, gdist, ahp, rmp, vb);
     // 2d. jumps, only where there is input (a zero input gives a zero jump and leaves every component as it is)
     has_input(n, inb, hb);
+    PROF_MARK(kCellDecay)
     for (int64_t i0 = 0; i0 < n; i0 += 8) {
       uint64_t word;
       std::memcpy(&word, hb + i0, 8);
       if (word == 0) continue;
       for (int64_t i = i0; i < std::min(i0 + 8, n); ++i) {
       if (!hb[i]) continue;
+      PROF_COUNT(input_cells, 1)
       const float ampa_in = inb[i], nmda_in = inb[n + i], gp_in = inb[2 * n + i], gd_in = inb[3 * n + i];
       const float v = vb[i];
       float ja, jgp, jgd;
@@ -365,6 +410,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       if (gd_in != 0.0f && gdist[i] > e_gaba) gdist[i] = std::min(gdist[i] - jgd, 0.0f);
       }
     }
+    PROF_MARK(kJumps)
     // 2e. threshold test (vectorised), then the spikes' own updates (rare)
     threshold(n, ampa, nmda, gprox, gdist, ahp, rmp, since, n_ref, vth, excess, vblock, a.vm_min, a.vm_max, sb);
     if constexpr (PerEvent)
@@ -372,6 +418,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
                         a.vm_max, sb);
     if (a.on_event)   // the original tests only on an arriving event
       for (int64_t i = 0; i < n; ++i) sb[i] &= hb[i];
+    PROF_MARK(kThreshold)
     fired.clear();
     for (int64_t i0 = 0; i0 < n; i0 += 8) {
       uint64_t word;
@@ -404,7 +451,9 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       count[id] += 1;
       p_next[j] = p_interval[j] >= kNever ? kNever : p_next[j] + p_interval[j];
     }
-    // 2g. delivery and tagging of this step's network spikes
+    PROF_MARK(kSpikeBookkeeping)
+    PROF_COUNT(spikes, int64_t(fired.size()))
+    // 2g. delivery of this step's network spikes
     for (int32_t i : fired) {
       const Tables& tb = groups[cell_group[i]];
       const bool exc = a.exc[cell_group[i]] != 0;
@@ -414,6 +463,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       const int32_t* packed = tb.out_packed + r * tb.out_width;
       const float* wt = tb.out_weight + r * tb.out_width;
       const float* wn = tb.out_nmda + r * tb.out_width;
+      PROF_COUNT(synapse_events, tb.out_width)
       for (int64_t j = 0; j < tb.out_width; ++j) {
         if (syn[j] >= n_syn) continue;  // padding (weight 0)
         float w = wt[j] * wgain[syn[j]];
@@ -423,15 +473,24 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
         ring[idx] += w;
         if (exc) ring[idx + n] += wn[j];
       }
-      if (n_plastic == 0) continue;
-      const int32_t* tag = tb.in_plastic + r * tb.in_width;
-      const int32_t* pre = tb.in_pre + r * tb.in_width;
-      for (int64_t j = 0; j < tb.in_width; ++j) {
-        if (tag[j] >= n_plastic || pre[j] >= n_all) continue;
-        const float l = last[pre[j]] <= t_ms ? last[pre[j]] : prev[pre[j]];
-        if (l >= 0.0f && t_ms - l <= window_ms) pdope[tag[j]] = std::max(pdope[tag[j]], t_ms);
-      }
     }
+    PROF_MARK(kDelivery)
+    // 2h. tagging of the plastic inputs of every cell that fired (reads spike times, writes tags: independent of
+    // the ring, so its own loop gives the same results)
+    if (n_plastic > 0)
+      for (int32_t i : fired) {
+        const Tables& tb = groups[cell_group[i]];
+        const int64_t r = cell_row[i];
+        const int32_t* tag = tb.in_plastic + r * tb.in_width;
+        const int32_t* pre = tb.in_pre + r * tb.in_width;
+        PROF_COUNT(tag_checks, tb.in_width)
+        for (int64_t j = 0; j < tb.in_width; ++j) {
+          if (tag[j] >= n_plastic || pre[j] >= n_all) continue;
+          const float l = last[pre[j]] <= t_ms ? last[pre[j]] : prev[pre[j]];
+          if (l >= 0.0f && t_ms - l <= window_ms) pdope[tag[j]] = std::max(pdope[tag[j]], t_ms);
+        }
+      }
+    PROF_MARK(kTags)
   }
   *at<int32_t>(out[oStep], flat) = first_step + int32_t(n_steps);
 }
