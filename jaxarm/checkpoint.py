@@ -11,7 +11,12 @@ from __future__ import annotations
 
 import hashlib
 import json
+import contextlib
+import io
+import logging
 import os
+import re
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -22,6 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 from jax.sharding import NamedSharding
+
+from jaxarm.runfolder import FolderError
 
 
 #: Name of the integrity manifest in every step folder.
@@ -65,12 +72,62 @@ def check_manifest(folder: Path) -> None:
             raise ValueError(f"{name} changed since it was written")
 
 
+class CheckpointWriteError(FolderError):
+    """A checkpoint could not be written (:meth:`Checkpointer.save`); its message is one line (the commands print
+    it as ``jaxarm COMMAND: ...`` and exit with status 2)."""
+
+
+def write_error_reason(error: BaseException) -> str:
+    """The reason of a failed write in a few words: the OS error (orbax's TensorStore reports it inside a longer
+    message as ``[os_error_code='28']``), else the error's first line."""
+    if isinstance(error, OSError) and error.strerror:
+        return error.strerror
+    text = str(error)
+    code = re.search(r"os_error_code='(\d+)'", text)
+    if code:
+        return os.strerror(int(code.group(1)))
+    first = text.strip().splitlines()[0] if text.strip() else type(error).__name__
+    return first[:160]
+
+
+class _Held:
+    """What :func:`_held_output` kept back: absl log records and text written to stderr."""
+
+    def __init__(self):
+        self.records: list[logging.LogRecord] = []
+        self.stderr = io.StringIO()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        self.records.append(record)
+        return False
+
+    def replay(self) -> None:
+        for record in self.records:
+            logging.getLogger(record.name).handle(record)
+        if self.stderr.getvalue():
+            sys.stderr.write(self.stderr.getvalue())
+
+
+@contextlib.contextmanager
+def _held_output():
+    """Hold back absl's log records and stderr (orbax's threads report a failed write there, in hundreds of lines)
+    while a checkpoint is written; :meth:`_Held.replay` lets them out when the write succeeded."""
+    held, absl_logger = _Held(), logging.getLogger("absl")
+    absl_logger.addFilter(held)
+    try:
+        with contextlib.redirect_stderr(held.stderr):
+            yield held
+    finally:
+        absl_logger.removeFilter(held)
+
+
 class Checkpointer:
     """Save and restore ``(state, meta)`` in ``directory``, keeping the last ``max_to_keep`` steps."""
 
     def __init__(self, directory: str | Path, max_to_keep: int = 2, warn: Callable[[str], None] = _warn):
         self.directory = Path(directory).absolute()
         self._warn = warn
+        self.max_to_keep = max_to_keep
         options = ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,
                                                enable_async_checkpointing=False)
         self._manager = ocp.CheckpointManager(self.directory, options=options, item_names=("state", "meta"))
@@ -78,18 +135,58 @@ class Checkpointer:
     def latest_step(self) -> int | None:
         return self._manager.latest_step()
 
+    def all_steps(self) -> list[int]:
+        """The complete steps in the folder, oldest first."""
+        return sorted(self._manager.all_steps())
+
+    def step_bytes(self) -> int | None:
+        """Bytes on disk of the newest step (what the next one will take, about), or None without one."""
+        step = self.latest_step()
+        if step is None:
+            return None
+        return sum(f.stat().st_size for f in (self.directory / str(step)).rglob("*") if f.is_file())
+
     def save(self, step: int, state, meta: dict) -> None:
         """Save (blocking: the checkpoint is complete on return). With several processes every one calls this with
-        its shards of the global arrays (orbax writes each process's part); process 0 writes the manifest."""
+        its shards of the global arrays (orbax writes each process's part); process 0 writes the manifest.
+
+        A write that fails (a full disk, a file system gone read-only) raises :class:`CheckpointWriteError`, one
+        line naming the step, the folder and the reason, after removing what was written of this step; orbax's own
+        log of the failure is dropped, and the steps written before are untouched."""
         from jaxarm import parallel
 
-        self._manager.save(int(step), args=ocp.args.Composite(state=ocp.args.StandardSave(state),
-                                                              meta=ocp.args.JsonSave(meta)), force=True)
-        self._manager.wait_until_finished()
+        try:
+            with _held_output() as held:
+                self._manager.save(int(step), args=ocp.args.Composite(state=ocp.args.StandardSave(state),
+                                                                      meta=ocp.args.JsonSave(meta)), force=True)
+                self._manager.wait_until_finished()
+            held.replay()
+        except Exception as e:  # noqa: BLE001 - any failure of the write is reported as one line
+            self._discard(int(step))
+            raise CheckpointWriteError(self._write_failure(int(step), e)) from e
         parallel.barrier(f"checkpoint-saved-{step}")
         if parallel.is_main_process():
-            write_manifest(self.directory / str(int(step)))
+            try:
+                write_manifest(self.directory / str(int(step)))
+            except OSError as e:
+                (self.directory / str(int(step)) / (MANIFEST + ".tmp")).unlink(missing_ok=True)
+                raise CheckpointWriteError(self._write_failure(int(step), e)) from e
         parallel.barrier(f"checkpoint-manifest-{step}")
+
+    def _discard(self, step: int) -> None:
+        """Remove the unfinished folders of ``step`` (orbax's temporary ones); complete steps are never touched."""
+        for partial in self.directory.glob(f"{step}.orbax-checkpoint-tmp*"):
+            shutil.rmtree(partial, ignore_errors=True)
+        try:
+            self._manager.reload()
+        except Exception:  # noqa: BLE001 - the manager is not used again after a failed write
+            pass
+
+    def _write_failure(self, step: int, error: Exception) -> str:
+        kept = [s for s in self._manager.all_steps() if s != step] if self.directory.is_dir() else []
+        then = (f"the last good checkpoint (step {max(kept)}) is intact: free space and run the same command again "
+                "to resume from it" if kept else "no earlier checkpoint: the run starts afresh when run again")
+        return f"cannot write checkpoint step {step} in {self.directory}: {write_error_reason(error)}; {then}"
 
     def _newest_readable(self, read, step: int | None):
         """``read(step)`` at ``step``, or (step None) at the newest step that can be read, moving unreadable newer

@@ -39,6 +39,7 @@ def _usage() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from_command_line = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(_usage())
@@ -55,6 +56,15 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(getattr(importlib.import_module(module), func)(rest) or 0)
     except Exception as e:
+        from jaxarm.config.validate import ConfigError
+
+        if isinstance(e, ConfigError):
+            # a bad value or a fault of the output folder (in use, full, read-only, a failed checkpoint write)
+            # found after the command's own option checks: one line, never a traceback
+            print(f"jaxarm {name}: {e}", file=sys.stderr, flush=True)
+            if from_command_line:   # the process ends now: orbax's writes left pending by a failed checkpoint
+                sys.unraisablehook = lambda _unraisable: None   # would complain as it shuts down
+            return 2
         gl = os.environ.get("MUJOCO_GL")
         if gl is None or not _raised_in_mujoco(e):
             raise

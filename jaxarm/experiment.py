@@ -30,7 +30,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxarm import parallel
+from jaxarm import parallel, runfolder
 from jaxarm.analysis.reach import reach_metrics
 from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.validate import ConfigError
@@ -310,13 +310,21 @@ def _check(ap, args):
         ap.error(f"--networks = {args.networks}: must be in [1, 4096]")
     if args.seed < 0:
         ap.error(f"--seed = {args.seed}: must be >= 0")
+    if args.epochs < 1:
+        ap.error(f"--epochs = {args.epochs}: must be >= 1 (an untrained network is the naive test's; "
+                 "`jaxarm test --from` re-tests trained ones)")
+    twice = sorted({t for t in args.target if args.target.count(t) > 1})
+    if twice:
+        ap.error(f"--target {' '.join(args.target)}: {', '.join(twice)} given more than once; give each target once")
 
 
 def train_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="jaxarm train", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_common(ap)
-    ap.add_argument("--out", type=Path, required=True, help="output folder (a rerun resumes from its checkpoints)")
+    ap.add_argument("--out", type=runfolder.folder_argument, required=True,
+                    help="output folder (a rerun resumes from its checkpoints; one command at a time: a second is "
+                         "refused while the first holds OUT/jaxarm.lock)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
                     help="train and test with this metaparameter changed from the authors' value (repeatable; "
                          "e.g. v_em_max=60); the training length is --epochs")
@@ -367,6 +375,11 @@ def train_main(argv: list[str] | None = None) -> int:
     except ConfigError as e:
         ap.error(str(e))
     mp = MetaParams.from_dict(overrides)
+    with runfolder.claim(args.out, "jaxarm train"):   # one writer per folder; --out checked before any work
+        return _train_targets(ap, args, configs, mp, record)
+
+
+def _train_targets(ap, args, configs, mp, record) -> int:
     summary = {}
     for target, cfg in configs:
         out = args.out / target if len(configs) > 1 else args.out
@@ -410,17 +423,18 @@ def _centre_out_main(ap, args) -> int:
     except ConfigError as e:
         ap.error(str(e))
     seeds = list(range(args.seed, args.seed + args.networks))
-    t0 = time.perf_counter()
-    r = train_and_test(config, task, seeds, mp)
-    wall = time.perf_counter() - t0
-    args.out.mkdir(parents=True, exist_ok=True)
-    hands = {k: r[k].pop("hand_m") for k in ("trained", "naive")}
-    results = {"task": "centre-out-8", **r, "n_networks": args.networks,
-               "network_seconds": args.networks * task.task_config().epochs * args.epoch_s, "wall_s": round(wall, 1),
-               "config": {"loop": _jsonable(dataclasses.asdict(config)), "metaparams": mp.to_dict()}}
-    (args.out / "results.json").write_text(json.dumps(results, indent=1))
-    np.savez_compressed(args.out / "trajectories.npz", hand=hands["trained"], naive_hand=hands["naive"],
-                        target=np.asarray(task.stacked_targets().xy_m), seeds=np.asarray(seeds))
+    with runfolder.claim(args.out, "jaxarm train --task centre-out-8"):
+        t0 = time.perf_counter()
+        r = train_and_test(config, task, seeds, mp)
+        wall = time.perf_counter() - t0
+        hands = {k: r[k].pop("hand_m") for k in ("trained", "naive")}
+        results = {"task": "centre-out-8", **r, "n_networks": args.networks,
+                   "network_seconds": args.networks * task.task_config().epochs * args.epoch_s,
+                   "wall_s": round(wall, 1),
+                   "config": {"loop": _jsonable(dataclasses.asdict(config)), "metaparams": mp.to_dict()}}
+        (args.out / "results.json").write_text(json.dumps(results, indent=1))
+        np.savez_compressed(args.out / "trajectories.npz", hand=hands["trained"], naive_hand=hands["naive"],
+                            target=np.asarray(task.stacked_targets().xy_m), seeds=np.asarray(seeds))
     print(f"{args.arm} arm, eight centre-out targets, {args.networks} networks: "
           + ", ".join(f"{t} {n}/{args.networks}" for t, n in r["trained"]["per_target"].items())
           + f" (naive: {sum(r['naive']['per_target'].values())} reaches in all); networks by targets reached (0..8): "

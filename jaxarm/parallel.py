@@ -10,11 +10,13 @@ process computes it, nor on how many share its device, so every layout gives the
 Set-up, once per process and before JAX computes anything (:func:`start`; the command line's ``--devices``,
 ``--coordinator``, ``--num-processes``, ``--process-id``, see :func:`add_arguments`):
 
-* CPU: ``devices`` host devices per process (default: the cores this process may use), each running one network
-  kernel thread, so a command uses the whole machine; a device may wait for the others at a gather for up to 6 h
-  (:data:`COLLECTIVE_WAIT_S`; XLA's own default aborts after 40 s).
+* CPU: ``devices`` host devices per process (default: the cores this process may use, :func:`usable_cores`: its
+  affinity mask, at most its cgroup CPU quota), each running one network kernel thread, so a command uses the whole
+  machine; a device may wait for the others at a gather for up to 6 h (:data:`COLLECTIVE_WAIT_S`; XLA's own default
+  aborts after 40 s).
 * Several processes (machines): ``jax.distributed.initialize`` with the coordinator's address, or with nothing under
-  SLURM or Open MPI (JAX reads their environment); CPU collectives through gloo. Process 0 writes the outputs;
+  SLURM or Open MPI (JAX reads their environment); CPU collectives through gloo. A process that has not joined all
+  the others within ``--coordinator-timeout`` (default 60 s) says so in one line naming the address and exits. Process 0 writes the outputs;
   checkpoints are orbax multi-process checkpoints on a file system all processes share.
 
 Each device runs its share in groups of :func:`networks_at_once` networks (8 on CPUs), one group after the other, and
@@ -26,8 +28,13 @@ minutes of training; the operation is not yet found: docs/scaling.md, "Known lim
 from __future__ import annotations
 
 import argparse
+import math
 import os
+import socket
+import sys
+import threading
 from functools import lru_cache
+from pathlib import Path
 from typing import Any, Callable
 
 import jax
@@ -43,12 +50,86 @@ BATCHED = PartitionSpec(AXIS)
 REPLICATED = PartitionSpec()
 
 
-def usable_cores() -> int:
-    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+def parse_cpu_max(text: str) -> float | None:
+    """CPUs allowed by a cgroup v2 ``cpu.max`` ("QUOTA PERIOD", microseconds): "200000 100000" is 2.0, "max 100000"
+    (no quota) and anything unreadable None."""
+    parts = text.split()
+    if len(parts) < 1 or parts[0] == "max":
+        return None
     try:
-        return len(os.sched_getaffinity(0))
+        quota, period = int(parts[0]), int(parts[1]) if len(parts) > 1 else 100_000
+    except ValueError:
+        return None
+    return quota / period if quota > 0 and period > 0 else None
+
+
+def parse_cfs_quota(quota: str, period: str) -> float | None:
+    """CPUs allowed by cgroup v1's ``cpu.cfs_quota_us`` and ``cpu.cfs_period_us`` ("-1": no quota), or None."""
+    try:
+        q, t = int(quota.strip()), int(period.strip())
+    except ValueError:
+        return None
+    return q / t if q > 0 and t > 0 else None
+
+
+def parse_cgroup_path(text: str, controller: str | None = None) -> str | None:
+    """A ``/proc/self/cgroup``'s path of the cgroup v2 hierarchy (the line ``0::/PATH``), or with ``controller``
+    (e.g. "cpu") the v1 hierarchy holding that controller; None if there is none."""
+    for line in text.splitlines():
+        num, _, rest = line.partition(":")
+        names, _, path = rest.partition(":")
+        if (controller is None and num == "0" and names == "") or \
+                (controller is not None and controller in names.split(",")):
+            return path.strip() or "/"
+    return None
+
+
+def _smallest_up(root: str, path: str, read) -> float | None:
+    """The smallest limit ``read(folder)`` of ``root + path`` and its parents up to ``root``."""
+    limits, folder, top = [], Path(root + path.rstrip("/")), Path(root)
+    while True:
+        try:
+            limit = read(folder)
+        except OSError:
+            limit = None
+        if limit is not None:
+            limits.append(limit)
+        if folder == top or top not in folder.parents:
+            break
+        folder = folder.parent
+    return min(limits) if limits else None
+
+
+def cgroup_cpu_limit(root: str = "/sys/fs/cgroup", proc_cgroup: str = "/proc/self/cgroup") -> float | None:
+    """CPUs allowed by this process's cgroup CPU quota (the smallest of its cgroup and its parents; a container sees
+    its own as the root): cgroup v2's ``cpu.max``, or v1's ``cpu.cfs_quota_us``; None without one."""
+    try:
+        text = Path(proc_cgroup).read_text()
+    except OSError:
+        text = ""
+    limits = [_smallest_up(root, parse_cgroup_path(text) or "/",
+                           lambda f: parse_cpu_max((f / "cpu.max").read_text()))]
+    v1 = parse_cgroup_path(text, "cpu")
+    if v1 is not None:
+        limits.append(_smallest_up(f"{root}/cpu", v1, lambda f: parse_cfs_quota(
+            (f / "cpu.cfs_quota_us").read_text(), (f / "cpu.cfs_period_us").read_text())))
+    limits = [x for x in limits if x is not None]
+    return min(limits) if limits else None
+
+
+def cores_from(affinity: int, quota: float | None) -> int:
+    """Usable cores: the affinity mask's count, at most the CPU quota's whole CPUs (at least 1)."""
+    return affinity if quota is None else max(1, min(affinity, math.floor(quota + 1e-9)))
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on: its affinity mask (where the OS has one), at most the whole CPUs of its
+    cgroup v2 CPU quota (``cpu.max``: a ``docker run --cpus 2`` container on a 64-core host has 2)."""
+    try:
+        affinity = len(os.sched_getaffinity(0))
     except AttributeError:   # pragma: no cover - not Linux
-        return os.cpu_count() or 1
+        affinity = os.cpu_count() or 1
+    return cores_from(affinity, cgroup_cpu_limit())
 
 
 def _cluster_detected() -> bool:
@@ -106,8 +187,83 @@ def map_networks(fn: Callable, at_once: int = 0) -> Callable:
     return grouped
 
 
+#: Seconds a process waits for all processes to join through the coordinator by default (``--coordinator-timeout``;
+#: JAX's own default is 300 s, after which it aborts the process with a C++ stack).
+COORDINATOR_TIMEOUT_S = 60.0
+_warned_devices = False
+
+
+def _quota_text() -> str:
+    quota = cgroup_cpu_limit()
+    try:
+        affinity = len(os.sched_getaffinity(0))
+    except AttributeError:   # pragma: no cover - not Linux
+        affinity = os.cpu_count() or 1
+    return f"affinity mask {affinity}" + (f", cgroup CPU quota {quota:g}" if quota is not None else "")
+
+
+def _warn_devices(devices: int) -> None:
+    global _warned_devices
+    cores = usable_cores()
+    if devices > cores and not _warned_devices:
+        _warned_devices = True
+        print(f"jaxarm: warning: --devices {devices} is more than the {cores} core(s) this process may use "
+              f"({_quota_text()}): the devices share cores, which is slower than one device per core and takes "
+              "more memory; leave --devices out for one device per usable core", file=sys.stderr, flush=True)
+
+
+def _check_port(coordinator: str) -> None:
+    """Process 0 serves the coordinator on the address's port: refuse at once when it cannot listen there."""
+    port = coordinator.rsplit(":", 1)[1]
+    if not port.isdigit() or not 0 < int(port) < 65536:
+        raise ConfigError(f"--coordinator = {coordinator!r}: the port must be a number in [1, 65535]")
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("", int(port)))
+        except OSError as e:
+            raise ConfigError(f"--coordinator {coordinator}: process 0 cannot listen on port {port} "
+                              f"({e.strerror or e}); give a free port") from None
+
+
+def _join(timeout_s: float, coordinator: str | None = None, num_processes: int | None = None,
+          process_id: int | None = None) -> None:
+    """``jax.distributed.initialize``, bounded: if not every process has joined after ``timeout_s``, one line
+    naming the address and this process's part, then exit status 2 (JAX's own timeout, set a little later, aborts
+    the process with a C++ stack)."""
+    where = coordinator or os.environ.get("JAX_COORDINATOR_ADDRESS") or "(from the SLURM / Open MPI environment)"
+    if coordinator is not None and process_id == 0:
+        _check_port(coordinator)
+
+    def give_up():
+        if process_id == 0:
+            why = (f"process 0 waited {timeout_s:g} s and not all {num_processes} processes joined; start each with "
+                   "the same command and its own --process-id")
+        else:
+            who = "this process" if process_id is None else f"process {process_id} of {num_processes}"
+            why = (f"{who} could not join within {timeout_s:g} s: is process 0 running there and the port "
+                   "reachable from here?")
+        print(f"jaxarm: error: --coordinator {where}: {why} (--coordinator-timeout S to wait longer)",
+              file=sys.stderr, flush=True)
+        os._exit(2)
+
+    watchdog = threading.Timer(timeout_s, give_up)
+    watchdog.daemon = True
+    watchdog.start()
+    kwargs = {} if coordinator is None else {"coordinator_address": coordinator, "num_processes": num_processes,
+                                             "process_id": process_id}
+    try:
+        jax.distributed.initialize(initialization_timeout=math.ceil(timeout_s) + 15, **kwargs)
+    except Exception as e:  # noqa: BLE001 - what JAX raises (a bad address, ...) becomes one line
+        text = str(e).strip().splitlines()[0][:200] if str(e).strip() else type(e).__name__
+        raise ConfigError(f"--coordinator {where}: cannot join the other processes ({text})") from None
+    finally:
+        watchdog.cancel()
+
+
 def start(devices: int | None = None, coordinator: str | None = None, num_processes: int | None = None,
-          process_id: int | None = None, networks_at_once: int | None = None) -> None:
+          process_id: int | None = None, networks_at_once: int | None = None,
+          coordinator_timeout_s: float | None = None) -> None:
     """Configure this process before JAX computes anything: ``devices`` CPU host devices (default
     :func:`usable_cores`), and, with a coordinator (or a detected SLURM / Open MPI job, or ``JAX_COORDINATOR_ADDRESS``),
     join the other processes through ``jax.distributed`` with gloo CPU collectives.
@@ -119,6 +275,8 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
 
     if devices is not None and devices < 1:
         raise ConfigError(f"--devices = {devices}: must be >= 1")
+    if coordinator_timeout_s is not None and not 0 < coordinator_timeout_s <= 86_400:
+        raise ConfigError(f"--coordinator-timeout = {coordinator_timeout_s:g}: must be in (0, 86400] s")
     if networks_at_once is not None:
         if networks_at_once < 0:
             raise ConfigError(f"--networks-at-once = {networks_at_once}: must be >= 0 (0: a device's whole share)")
@@ -135,6 +293,8 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
             raise ConfigError(f"--process-id = {process_id}: must be in [0, {num_processes - 1}]")
         if ":" not in coordinator:
             raise ConfigError(f"--coordinator = {coordinator!r}: expected HOST:PORT")
+    if devices is not None:
+        _warn_devices(devices)
     global _started
     if _started or xla_bridge.backends_are_initialized():
         return
@@ -144,11 +304,11 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
     distributed = all(explicit) and num_processes > 1
     if distributed or _cluster_detected() or os.environ.get("JAX_COORDINATOR_ADDRESS"):
         jax.config.update("jax_cpu_collectives_implementation", "gloo")
+        timeout = COORDINATOR_TIMEOUT_S if coordinator_timeout_s is None else coordinator_timeout_s
         if distributed:
-            jax.distributed.initialize(coordinator_address=coordinator, num_processes=num_processes,
-                                       process_id=process_id)
+            _join(timeout, coordinator, num_processes, process_id)
         else:
-            jax.distributed.initialize()
+            _join(timeout)
 
 
 def add_arguments(ap: argparse.ArgumentParser) -> None:
@@ -166,13 +326,16 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
                         "its own --process-id (not needed under SLURM or Open MPI, which JAX detects)")
     g.add_argument("--num-processes", type=int, default=None, metavar="N", help="number of processes (with --coordinator)")
     g.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1 (with --coordinator)")
+    g.add_argument("--coordinator-timeout", type=float, default=None, metavar="S",
+                   help=f"seconds to wait for every process to join (default {COORDINATOR_TIMEOUT_S:g}); then "
+                        "one line naming the address, exit status 2")
 
 
 def start_from_arguments(args) -> None:
     """:func:`start` from the parsed options of :func:`add_arguments` (``--devices``, ``--coordinator``,
     ``--num-processes``, ``--process-id``)."""
     start(args.devices, args.coordinator, args.num_processes, args.process_id,
-          getattr(args, "networks_at_once", None))
+          getattr(args, "networks_at_once", None), getattr(args, "coordinator_timeout", None))
 
 
 @lru_cache(maxsize=None)
@@ -291,4 +454,4 @@ def describe() -> dict:
 
 __all__ = ["AXIS", "BATCHED", "REPLICATED", "start", "add_arguments", "start_from_arguments", "mesh", "padded_size",
            "sharded_map", "is_main_process", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe",
-           "usable_cores"]
+           "usable_cores", "cgroup_cpu_limit", "parse_cpu_max", "COORDINATOR_TIMEOUT_S"]

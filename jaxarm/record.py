@@ -300,8 +300,10 @@ class SpikeFile:
         if not self.path.is_file():
             raise FileNotFoundError(f"{self.path}: no spike record there; make one with `jaxarm test --from RUN "
                                     "--record-spikes` (or `jaxarm train ... --record-spikes`)")
-        with np.load(self.path) as z:
-            self.data = {k: z[k] for k in z.files}
+        from jaxarm.runfolder import read_npz
+
+        self.data = read_npz(self.path, ("windows", "seeds", "dt_ms", "populations", "pop_start", "pop_stop",
+                                         "n_all", "group", "arm", "networks"))
         self.windows = [str(w) for w in self.data["windows"]]
         self.seeds = self.data["seeds"]
         self.dt_ms = float(self.data["dt_ms"])

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import sys
 import time
 from pathlib import Path
@@ -22,7 +23,7 @@ from typing import Callable, NamedTuple
 import jax
 import numpy as np
 
-from jaxarm import parallel
+from jaxarm import parallel, runfolder
 from jaxarm.config.network import RUNTIME_FIELDS, SPEC_KEYS
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import NAMES, MetaParams
@@ -99,6 +100,35 @@ def add_network_arguments(ap, note: str = "") -> None:
     ap.add_argument("--network-scale", type=int, default=None, metavar="F",
                     help="every population F times larger by the original's scaling rules (NetworkConfig.scaled: "
                          "in-degrees, P code and readout drive kept; docs/model.md)")
+
+
+def _short(value, width: int = 60) -> str:
+    text = "(absent)" if value is _ABSENT else json.dumps(value, default=str)
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+_ABSENT = object()
+
+
+def differences(saved, now, prefix: str = "") -> list[tuple[str, object, object]]:
+    """(dotted field, saved value, value now) of every field that differs between two run descriptions, nested
+    dicts (metaparams, a network's sizes) field by field, lists element by element when their lengths agree."""
+    if isinstance(saved, dict) and isinstance(now, dict):
+        out = []
+        for k in list(saved) + [k for k in now if k not in saved]:
+            out += differences(saved.get(k, _ABSENT), now.get(k, _ABSENT), f"{prefix}{k}.")
+        return out
+    if isinstance(saved, list) and isinstance(now, list) and len(saved) == len(now):
+        return [d for i, (a, b) in enumerate(zip(saved, now)) for d in differences(a, b, f"{prefix}{i}.")]
+    return [] if saved == now else [(prefix.rstrip("."), saved, now)]
+
+
+def describe_differences(saved: dict, now: dict, most: int = 4) -> str:
+    """One line naming the fields that differ: ``epochs saved 6, now 3; metaparams.learn_rate saved 0.1, now 0.2``
+    (the first ``most`` of them, then how many more)."""
+    diff = differences(saved, now)
+    text = "; ".join(f"{k or 'the description'} saved {_short(a)}, now {_short(b)}" for k, a, b in diff[:most])
+    return text + (f"; and {len(diff) - most} more field(s)" if len(diff) > most else "")
 
 
 def curve_entry(result: TestResult) -> dict:
@@ -187,8 +217,8 @@ class Batch:
                              f"this machine would continue with the {mine['kernel']} one ({native.status()}); the "
                              "kernels agree to float rounding, not bit for bit: resume where the same kernel runs")
         if saved != mine:
-            raise SystemExit(f"{self.out / 'checkpoints'} holds a different run ({saved}); "
-                             "use another --out or delete it")
+            raise SystemExit(f"{self.out / 'checkpoints'} holds a different run: {describe_differences(saved, mine)}; "
+                             "give the same options to resume it, or another --out (or delete the folder)")
 
     def _restore(self, ckpt, carry, history, saved: dict):
         """(carry on the mesh, host history) from ``ckpt``'s newest step. A checkpoint written on another layout
@@ -278,6 +308,9 @@ class Batch:
                 self.learning_curve = {int(e): v for e, v in saved.get("learning_curve", {}).items()
                                        if int(e) <= done}
             last = epochs if stop_after is None else min(epochs, done + stop_after)
+            if done < last:   # a full disk is refused here, before compiling, not after the first epoch
+                runfolder.check_space(self.out, ckpt.step_bytes() or sum(x.nbytes for x in
+                                                                         jax.tree.leaves((carry, history))))
             recorded = self.record.recorded_epochs(epochs) if self.record is not None else ()
             skipped = [e for e in recorded if e <= done]
             if skipped and parallel.is_main_process():

@@ -16,9 +16,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
-from jaxarm import parallel
+from jaxarm import parallel, runfolder
 from jaxarm.config.validate import ConfigError
 
 DEFAULT_FITNESS = "reaching"
@@ -43,8 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     ap = argparse.ArgumentParser(prog="jaxarm evolve", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=Path, help="output folder (checkpoints, history.json, top_k.json, convergence.png);"
-                                             " resumed when it holds a checkpoint")
+    ap.add_argument("--out", type=runfolder.folder_argument,
+                    help="output folder (checkpoints, history.json, top_k.json, convergence.png); resumed when it "
+                         "holds a checkpoint; one command at a time (OUT/jaxarm.lock)")
     ap.add_argument("--task", choices=tuple(TASKS), default="reaching",
                     help="reaching (default): one network per target, the paper's search; centre-out-8: one network "
                          "trained on the original's eight centre-out targets in turn, with a target code "
@@ -181,9 +181,10 @@ def evolve_main(argv: list[str] | None = None) -> int:
                 reevaluate_meta["targets"] = list(re_targets)
         print(f"jaxarm evolve: {args.fitness} on {space.n_dims} metaparameters ({', '.join(space.names)}); "
               f"frozen: {json.dumps(dict(space.frozen))}")
-        result = run_search(fitness, space, config, args.out, fitness_meta=meta, max_chunks=args.max_chunks,
-                            reevaluate_seeds=args.reevaluate_seeds, reevaluate_fitness=reevaluate_fitness,
-                            reevaluate_meta=reevaluate_meta)
+        with runfolder.claim(args.out, "jaxarm evolve"):
+            result = run_search(fitness, space, config, args.out, fitness_meta=meta, max_chunks=args.max_chunks,
+                                reevaluate_seeds=args.reevaluate_seeds, reevaluate_fitness=reevaluate_fitness,
+                                reevaluate_meta=reevaluate_meta)
     except ConfigError as e:
         print(f"jaxarm evolve: {e}", file=sys.stderr)
         return 2

@@ -39,7 +39,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxarm import parallel
+from jaxarm import parallel, runfolder
 from jaxarm.config.network import RUNTIME_FIELDS
 from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
@@ -443,7 +443,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "docs/centre-out.md)")
     ap.add_argument("--preset", help="preset name (see --list-presets) or the path of a preset .json file "
                                      "(default: the arm's protocol of the README's headline numbers, which it prints)")
-    ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
+    ap.add_argument("--out", type=runfolder.folder_argument,
+                    help="output folder (a rerun resumes it; one command at a time, OUT/jaxarm.lock)")
     ap.add_argument("--targets", default=None,
                     help="comma-separated targets (default: the preset's own targets if it was tuned for some, "
                          "else left,bottom)")
@@ -510,12 +511,14 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         from jaxarm.run import network_config as network_config_of
 
         overrides = _parse_overrides(args.overrides)
-        table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
-                          overrides=overrides,
-                          epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
-                          backend=args.backend, progress=not args.no_progress, dt_ms=args.dt_ms,
-                          preset_dir=args.preset_dir, network=network_config_of(args),
-                          command=shlex.join(["jaxarm", "reproduce", *argv]))
+        network = network_config_of(args)
+        with runfolder.claim(args.out, "jaxarm reproduce"):
+            table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
+                              overrides=overrides,
+                              epochs=args.epochs, epoch_s=args.epoch_s, test_s=args.test_s, top=args.top,
+                              backend=args.backend, progress=not args.no_progress, dt_ms=args.dt_ms,
+                              preset_dir=args.preset_dir, network=network,
+                              command=shlex.join(["jaxarm", "reproduce", *argv]))
     except ConfigError as e:
         print(f"jaxarm reproduce: {e}", file=sys.stderr)
         return 2
@@ -553,10 +556,11 @@ def _reproduce_centre_out(args, preset, argv) -> int:
     meta = {"command": shlex.join(["jaxarm", "reproduce", *argv]),
             "date": datetime.now(timezone.utc).strftime("%Y-%m-%d"),
             "machine": f"{platform.machine()}, {parallel.usable_cores()} cores"}
-    result = run_with_control(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task,
-                              range(args.seed, args.seed + args.networks), mp, args.out, meta=meta)
-    table = table_markdown(result)
-    (args.out / "centre_out.md").write_text(table + "\n")
+    with runfolder.claim(args.out, "jaxarm reproduce --task centre-out-8"):
+        result = run_with_control(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task,
+                                  range(args.seed, args.seed + args.networks), mp, args.out, meta=meta)
+        table = table_markdown(result)
+        (args.out / "centre_out.md").write_text(table + "\n")
     print(table)
     return 0
 

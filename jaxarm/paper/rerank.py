@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm import parallel
+from jaxarm import parallel, runfolder
 from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
 
@@ -280,7 +280,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
     ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
-    ap.add_argument("--out", type=Path, help="output folder (a rerun resumes it)")
+    ap.add_argument("--out", type=runfolder.folder_argument,
+                    help="output folder (a rerun resumes it; one command at a time, OUT/jaxarm.lock)")
     ap.add_argument("--make-preset", metavar="NAME", help="when ranked, also write preset NAME.json of the ranking")
     ap.add_argument("--from-rerank", type=Path, metavar="DIR",
                     help="with --make-preset: write the preset of this finished ranking folder and exit")
@@ -309,11 +310,12 @@ def rerank_main(argv: list[str] | None = None) -> int:
             ap.error(f"{', '.join(missing)} required (or --make-preset NAME --from-rerank DIR)")
         parallel.start_from_arguments(args)
         pool = [p.strip() for p in args.pool.split(",") if p.strip()]
-        table = rerank(args.arm, args.target, pool, args.out, seeds=args.seeds, first_seed=args.first_seed,
-                       best=args.best, epochs=args.epochs, rank_by=args.rank_by, epoch_s=args.epoch_s,
-                       test_s=args.test_s,
-                       backend=args.backend, progress=not args.no_progress, preset_dir=args.preset_dir,
-                       command=shlex.join(["jaxarm", "rerank", *argv]))
+        with runfolder.claim(args.out, "jaxarm rerank"):
+            table = rerank(args.arm, args.target, pool, args.out, seeds=args.seeds, first_seed=args.first_seed,
+                           best=args.best, epochs=args.epochs, rank_by=args.rank_by, epoch_s=args.epoch_s,
+                           test_s=args.test_s,
+                           backend=args.backend, progress=not args.no_progress, preset_dir=args.preset_dir,
+                           command=shlex.join(["jaxarm", "rerank", *argv]))
         if table is not None and args.make_preset and parallel.is_main_process():
             p = preset_from_ranking(args.out, args.make_preset, args.description)
             print(f"preset {p.name!r}: best set + {len(p.top)} top sets -> {preset_lib.save(p, args.preset_dir)}")

@@ -290,7 +290,14 @@ def export_main(argv: list[str]) -> int:
                        fmt=args.format, wam_joints=args.wam_joints, first_arrival_s=args.start_delay)
         from jaxarm.robot.metrics import tracking_report
 
-        report = tracking_report(log.columns())
+        try:
+            report = tracking_report(log.columns())
+        except ValueError as err:
+            packets = log.summary().get("packets", {})
+            why = ", ".join(f"{k} {v}" for k, v in packets.items() if v and k not in ("received", "ok"))
+            p.error(f"--trajectory {args.trajectory}: the simulated robot took none of its "
+                    f"{packets.get('received', 0)} packets ({why or err}); angles must lie within the WAM's joint ranges "
+                    "(jaxarm wam-sim --print-config)")
         if args.log:
             try:
                 log.to_csv(args.log)

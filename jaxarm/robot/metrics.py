@@ -41,13 +41,33 @@ PAPER = {
 JOINTS = ("shoulder", "elbow")
 
 
-def load_log(path: str | Path) -> dict[str, np.ndarray]:
-    """Read a simulator CSV log (header row of column names) into ``{column: array}``."""
+#: The columns of a simulator log that the metrics read.
+LOG_COLUMNS = ("t", "target_shoulder", "target_elbow", "robot_shoulder", "robot_elbow", "new_target")
+
+
+def load_log(path: str | Path, required: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
+    """Read a simulator CSV log (header row of column names) into ``{column: array}``. A file that is not such a
+    CSV, or lacks a column of ``required`` (e.g. :data:`LOG_COLUMNS`), raises ValueError naming the file and what is
+    wrong (OSError when it cannot be read)."""
     path = Path(path)
-    with open(path) as f:
-        names = [h.strip() for h in f.readline().split(",")]
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    return {name: data[:, i] for i, name in enumerate(names)}
+    try:
+        with open(path) as f:
+            names = [h.strip() for h in f.readline().split(",")]
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text CSV (binary data)") from None
+    except ValueError as e:
+        why = str(e).strip().splitlines()[0][:120] if str(e).strip() else "unreadable"
+        raise ValueError(f"{path}: not a CSV of numbers below its header ({why})") from None
+    missing = [c for c in required if c not in names]
+    if missing:
+        raise ValueError(f"{path}: lacks the column(s) {', '.join(missing)} of a `jaxarm wam-sim --log` CSV "
+                         f"(its header: {','.join(names)[:120]})")
+    if data.size and data.shape[1] != len(names):
+        raise ValueError(f"{path}: {data.shape[1]} values per row but {len(names)} column names in its header")
+    if required and data.shape[0] < 2:
+        raise ValueError(f"{path}: {data.shape[0]} data row(s); a log needs at least 2")
+    return {name: data[:, i] if data.size else np.zeros(0) for i, name in enumerate(names)}
 
 
 def interval_stats(times_s) -> dict:
@@ -76,8 +96,10 @@ def error_over_displacement(target, robot, reference: str = "target") -> dict:
     target, robot = np.asarray(target, float), np.asarray(robot, float)
     err = np.abs(target - robot).mean(axis=0)
     disp = total_displacement(target if reference == "target" else robot)
-    with np.errstate(divide="ignore"):
-        return dict(zip(JOINTS, (err / disp).tolist()))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = err / disp
+    # a joint that never moved has no ratio (None, which JSON writes as null)
+    return dict(zip(JOINTS, [float(r) if np.isfinite(r) else None for r in ratio]))
 
 
 def _pearson_by_lag(a: np.ndarray, b: np.ndarray, max_lag: int) -> np.ndarray:
@@ -104,6 +126,8 @@ def xcorr_delay(a, b, dt_s: float, max_lag_s: float = 1.0) -> float:
     (``a[:n - L]`` with ``b[L:]``); exact for a pure shift."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     max_lag = min(int(round(max_lag_s / dt_s)), len(a) - 3)
+    if max_lag < 0:
+        return math.nan         # fewer than 3 samples: no lag can be measured
     return float(np.argmax(_pearson_by_lag(a, b, max_lag)) * dt_s)
 
 
@@ -157,14 +181,21 @@ def dimensionless_jerk(t, xy) -> float:
     tj, j = jerk(t, xy)
     j2 = np.sum(j ** 2, axis=-1)
     weights = np.gradient(tj) if len(tj) > 1 else np.ones(1)
+    if len(t) < 4:
+        return math.nan         # no jerk below 4 samples
     duration = t[-1] - t[0]
     v_mean = np.linalg.norm(np.diff(xy, axis=0), axis=-1).sum() / duration
+    if not v_mean > 0:
+        return math.nan         # a hand that never moves has no dimensionless jerk
     return float(np.sum(j2 * weights) * duration ** 3 / v_mean ** 2)
 
 
 def boxplot_stats(values) -> dict:
     """Median, quartiles, 1.5-IQR whiskers and the outlier count (matplotlib's boxplot convention)."""
     v = np.asarray(values, float).ravel()
+    if v.size == 0:
+        return {"n": 0, "median": None, "q1": None, "q3": None, "whisker_lo": None, "whisker_hi": None,
+                "n_outliers": 0}
     q1, med, q3 = np.percentile(v, [25, 50, 75])
     iqr = q3 - q1
     lo_fence, hi_fence = q1 - 1.5 * iqr, q3 + 1.5 * iqr
@@ -186,9 +217,14 @@ def signals(log: dict) -> dict:
 
 def tracking_report(log: dict, window_s: float = 5.0, max_lag_s: float = 1.0,
                     skip_until_first_packet: bool = True) -> dict:
-    """Every robot metric of the paper for one log, with the paper's values beside them."""
+    """Every robot metric of the paper for one log, with the paper's values beside them. A metric the log cannot
+    give (a joint that never moved, too few samples for a jerk or a delay window) is None, never NaN, so the report
+    is valid JSON; a log in which the robot took no target at all raises ValueError."""
     s = signals(log)
     t, target, robot, new = s["t"], s["target"], s["robot"], s["new"]
+    if not new.any():
+        raise ValueError(f"the robot took none of the targets sent ({len(t)} rows, no new_target): nothing to "
+                         "compare")
     if skip_until_first_packet and new.any():
         first = int(np.argmax(new))
         t, target, robot, new = t[first:], target[first:], robot[first:], new[first:]
@@ -201,7 +237,7 @@ def tracking_report(log: dict, window_s: float = 5.0, max_lag_s: float = 1.0,
     tv, virt = t[new], hand_t[new]
     _, j_virtual = jerk(tv, virt)
     _, j_robot = jerk(t, hand_r)
-    return {
+    report = {
         "duration_s": float(t[-1] - t[0] + dt),
         "samples": {"virtual": int(new.sum()), "robot": int(len(t))},
         "packet_intervals": interval_stats(tv),
@@ -221,3 +257,16 @@ def tracking_report(log: dict, window_s: float = 5.0, max_lag_s: float = 1.0,
         "dimensionless_jerk": {"virtual": dimensionless_jerk(tv, virt), "robot": dimensionless_jerk(t, hand_r)},
         "paper": PAPER,
     }
+    return _finite_or_none(report)
+
+
+def _finite_or_none(x):
+    """``x`` with every NaN or infinite float replaced by None (JSON's null; ``json.dumps`` would write bare
+    ``NaN``, which is not JSON)."""
+    if isinstance(x, dict):
+        return {k: _finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return type(x)(_finite_or_none(v) for v in x)
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x

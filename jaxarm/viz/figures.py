@@ -31,6 +31,7 @@ import numpy as np
 
 from jaxarm.arm.base import GROUPS
 from jaxarm.record import MUSCLES_FILE, SPIKES_FILE, SpikeFile
+from jaxarm.runfolder import DamagedFile, lookup, read_json, read_npz
 
 #: Muscle groups (jaxarm.arm.GROUPS order: shoulder extensors, shoulder flexors, elbow extensors, elbow flexors).
 GROUP_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
@@ -39,6 +40,8 @@ GROUP_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 POP_COLORS = {"ES": "0.2", "IS": "tab:purple", "ISL": "tab:pink", "IM": "tab:purple", "IML": "tab:pink"}
 OTHER_COLORS = ("tab:brown", "tab:olive", "tab:cyan", "tab:gray", "darkgoldenrod", "teal")
 PASSIVE_COLOR = "0.6"
+#: What a run folder's trajectories.npz must hold for the figures and the video.
+TRAJECTORY_KEYS = ("t", "q", "hand", "naive_q", "naive_hand", "seeds")
 
 
 def band_order(f: SpikeFile) -> tuple[str, ...]:
@@ -72,11 +75,14 @@ class RunFolder:
     @classmethod
     def from_arguments(cls, ap: argparse.ArgumentParser, args) -> "RunFolder":
         """The folder of ``args.run``, with ``args.network`` checked against it; a bad value exits through
-        ``ap.error`` with one line (the commands `jaxarm figures` and `jaxarm video`)."""
+        ``ap.error`` with one line (the commands `jaxarm figures` and `jaxarm video`), a damaged file (not JSON,
+        not an .npz, truncated, lacking a field) with one line naming it, status 2."""
         try:
             run = cls(args.run)
         except FileNotFoundError as e:
             ap.error(str(e))
+        except DamagedFile as e:
+            ap.exit(2, f"{ap.prog}: error: {e}\n")
         if not 0 <= args.network < run.n:
             ap.error(f"--network {args.network}: the run has {run.n} networks (0..{run.n - 1})")
         return run
@@ -86,24 +92,36 @@ class RunFolder:
         if not (self.path / "results.json").is_file() or not (self.path / "trajectories.npz").is_file():
             raise FileNotFoundError(f"{self.path}: no results.json and trajectories.npz there; give a folder written "
                                     "by `jaxarm train` or `jaxarm test`")
-        self.results = json.loads((self.path / "results.json").read_text())
-        with np.load(self.path / "trajectories.npz") as z:
-            self.traj = {k: z[k] for k in z.files}
+        results = self.path / "results.json"
+        self.results = read_json(results)
+        if self.results.get("task") == "centre-out-8":
+            raise DamagedFile(f"{results}: a centre-out-8 run; the figures and the video draw a reaching run "
+                              "(one target per network)")
+        self.traj = read_npz(self.path / "trajectories.npz", TRAJECTORY_KEYS)
         self.history = None
         if (self.path / "history.npz").is_file():
-            with np.load(self.path / "history.npz") as z:
-                self.history = {k: z[k] for k in z.files}
+            self.history = read_npz(self.path / "history.npz", ("rates_last10s_hz", "populations"))
         self.spikes = SpikeFile(self.path / SPIKES_FILE) if (self.path / SPIKES_FILE).is_file() else None
         self.muscles = None
         if (self.path / MUSCLES_FILE).is_file():
-            with np.load(self.path / MUSCLES_FILE) as z:
-                self.muscles = {k: z[k] for k in z.files}
-        task = self.results["config"]["loop"]["task"]
-        self.arm = self.results["config"]["arm"]
-        self.dt_s = float(task["update_interval_s"])
-        self.radius_m = float(task["success_radius_m"])
-        self.target_m = np.asarray(self.results["target_xy_m"], float)
+            self.muscles = read_npz(self.path / MUSCLES_FILE, ("networks", "muscle_names"))
+        task = lookup(self.results, results, "config", "loop", "task")
+        self.arm = lookup(self.results, results, "config", "arm")
+        lookup(self.results, results, "target")
+        try:
+            self.dt_s = float(lookup(task, results, "update_interval_s"))
+            self.radius_m = float(lookup(task, results, "success_radius_m"))
+            self.target_m = np.asarray(lookup(self.results, results, "target_xy_m"), float).reshape(2)
+        except (TypeError, ValueError):
+            raise DamagedFile(f"{results}: config.loop.task's update_interval_s / success_radius_m or target_xy_m "
+                              "is not a number (pair)") from None
         self.seeds = self.traj["seeds"]
+        t, n = self.traj["t"], len(np.atleast_1d(self.seeds))
+        for key in ("hand", "naive_hand", "q", "naive_q"):
+            shape = self.traj[key].shape
+            if len(shape) != 3 or shape[:2] != (n, len(t)) or shape[2] != 2:
+                raise DamagedFile(f"{self.path / 'trajectories.npz'}: {key} has shape {shape}, not ({n} networks, "
+                                  f"{len(t)} steps, 2) as its seeds and t say")
 
     @property
     def n(self) -> int:
@@ -473,6 +491,14 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--dpi {args.dpi}: must be in [10, 1200]")
     if args.robot_log is not None and not args.robot_log.is_file():
         ap.error(f"--robot-log {args.robot_log}: no such file")
+    if args.robot_log is not None:   # read and measured before any figure is written
+        from jaxarm.robot import metrics as rm
+
+        try:
+            rm.tracking_report(rm.load_log(args.robot_log, required=rm.LOG_COLUMNS))
+        except (OSError, ValueError) as e:
+            ap.exit(2, f"{ap.prog}: error: --robot-log {args.robot_log}: "
+                       f"{str(e).removeprefix(str(args.robot_log) + ': ')}\n")
     try:
         manifest = make_figures(run, args.out or run.path / "figures", args.network, args.window, args.bin_ms,
                                 args.robot_log, args.grid, args.dpi)

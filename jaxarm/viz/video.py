@@ -321,6 +321,14 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--renderer mujoco: the {run.arm} arm has no MJCF model; it needs a musculoskeletal run")
     if args.robot_log is not None and not args.robot_log.is_file():
         ap.error(f"--robot-log {args.robot_log}: no such file")
+    if args.robot_log is not None:
+        from jaxarm.robot import metrics as rm
+
+        try:
+            rm.load_log(args.robot_log, required=rm.LOG_COLUMNS)
+        except (OSError, ValueError) as e:
+            ap.exit(2, f"{ap.prog}: error: --robot-log {args.robot_log}: "
+                       f"{str(e).removeprefix(str(args.robot_log) + ': ')}\n")
     out = args.out or run.path / f"video_network{args.network}.mp4"
     out.parent.mkdir(parents=True, exist_ok=True)
     from jaxarm.viz.mujoco_render import RenderUnavailable
