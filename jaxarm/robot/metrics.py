@@ -97,9 +97,7 @@ def error_over_displacement(target, robot, reference: str = "target") -> dict:
     err = np.abs(target - robot).mean(axis=0)
     disp = total_displacement(target if reference == "target" else robot)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = err / disp
-    # a joint that never moved has no ratio (None, which JSON writes as null)
-    return dict(zip(JOINTS, [float(r) if np.isfinite(r) else None for r in ratio]))
+        return dict(zip(JOINTS, (err / disp).tolist()))
 
 
 def _pearson_by_lag(a: np.ndarray, b: np.ndarray, max_lag: int) -> np.ndarray:
