@@ -109,8 +109,8 @@ def test_networks_is_not_read_as_networks_at_once(monkeypatch):
     seen = {}
     monkeypatch.setattr(parallel, "start", lambda *a: seen.update(args=a))
     assert cli._start_devices("train", ["--networks", "30", "--devices", "1", "--out", "x"]) == 0
-    assert seen["args"] == (1, None, None, None, None)
-    assert cli._start_devices("train", ["--networks-at-once", "4"]) == 0 and seen["args"][-1] == 4
+    assert seen["args"] == (1, None, None, None, None, None)     # the last: --coordinator-timeout
+    assert cli._start_devices("train", ["--networks-at-once", "4"]) == 0 and seen["args"][4] == 4
 
 
 @pytest.mark.slow
