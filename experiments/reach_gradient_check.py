@@ -22,6 +22,7 @@ Prints a markdown table and a JSON line with the date and machine.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -78,8 +79,23 @@ def main(argv=None) -> int:
         dirs /= np.sqrt(np.mean(dirs ** 2, axis=1, keepdims=True))   # every gain moves by about h
         names = [str(j) for j in range(args.directions)]
 
-    # the forward loss does not depend on the surrogate's dampening: one compiled mean over streams
-    mean_loss = jax.jit(lambda g: jnp.mean(jax.vmap(lambda k: base.reach_loss(g, trained, mp, k)[0])(streams)))
+    # The reference's forward passes: the training loop with spikes delivered by lists instead of densely (the same
+    # spikes and arm to the bit, tests/test_gradient_learning.py, and several times faster), the same loss.
+    from jaxarm.learning import babbling as bab
+    from jaxarm.loop import ClosedLoop
+
+    fwd_cfg = base.loop.config
+    fwd = ClosedLoop(dataclasses.replace(fwd_cfg, network=dataclasses.replace(fwd_cfg.network, spike_gradient="none")))
+    reach = round(args.reach_s / task.update_interval_s)
+
+    def loss(g, k):
+        state = fwd.init(k, trained.wgain.at[:n_train].set(g), trained.babble, bab.em_noise_rates_in_test(mp))
+        state, rec = fwd.run(trained.wiring, state, jax.random.key(0), mp, reach, learn=False)
+        return jnp.mean(jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1))
+
+    mean_loss = jax.jit(lambda g: jnp.mean(jax.vmap(lambda k: loss(g, k))(streams)))
+    check = jax.jit(lambda g, k: (loss(g, k), base.reach_loss(g, trained, mp, k)[0]))(gains, streams[0])
+    assert float(check[0]) == float(check[1]), check      # the same loss as the one differentiated
     loss0 = float(mean_loss(gains))
     reference = {h: [float(mean_loss(gains + h * d) - mean_loss(gains - h * d)) / (2 * h) for d in dirs]
                  for h in args.h}

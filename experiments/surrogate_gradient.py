@@ -1,7 +1,8 @@
 """How far the surrogate spike gradient can be trusted: against finite differences of the noise-averaged spike count,
 and where it explodes (jaxarm.network.surrogate).
 
-    python experiments/surrogate_gradient.py [--scales 0.01 0.03 0.05 0.1] [--width-mv 2] [--seeds 32] [--ms 200]
+    python experiments/surrogate_gradient.py [--scales 0.01 0.02 0.03 0.05 0.07 0.1 0.2] [--width-mv 2] [--seeds 32]
+        [--ms 200]
         [--block-steps 1]
 
 One network wiring (key 0), the P code held at fixed muscle lengths, ``--seeds`` background-noise streams. The
@@ -28,7 +29,7 @@ import numpy as np
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scales", type=float, nargs="+", default=[0.01, 0.03, 0.05, 0.1])
+    ap.add_argument("--scales", type=float, nargs="+", default=[0.01, 0.02, 0.03, 0.05, 0.07, 0.1, 0.2])
     ap.add_argument("--width-mv", type=float, default=2.0)
     ap.add_argument("--seeds", type=int, default=32)
     ap.add_argument("--ms", type=float, default=200.0)

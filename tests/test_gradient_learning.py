@@ -160,13 +160,16 @@ def test_train_by_gradient_then_retest_from_the_folder(tmp_path, capsys):
     assert stop.value.code == 2 and "reach_s" in err and len(err.strip().splitlines()[-1]) < 300
 
 
-@pytest.mark.slow
-def test_surrogate_gradient_points_up_the_noise_averaged_spike_count():
+def test_surrogate_gradient_is_its_measured_share_of_the_noise_averaged_slope():
     # The count of EM spikes is a step function of a weight in one network, but smooth on average over background
-    # noise. Over 16 noise streams, d(mean count)/d(scale of the ES->EM gains) by finite differences (h = 0.1)
-    # against the mean surrogate gradient: same sign, within a factor of 5 (measured 0.33 at w = 2 mV, g = 0.03:
-    # the surrogate is dampened to keep the recurrent loops from exploding, so it underestimates).
+    # noise. Over 16 noise streams, d(mean count)/d(scale of the ES->EM gains) by central differences (h = 0.1)
+    # is the reference, independent of autodiff; the mean surrogate gradient at the default width and dampening
+    # (2 mV, 0.05) is a known share of it: 0.44 over 32 streams in experiments/surrogate_gradient.py (the
+    # surrogate is dampened to keep the recurrent loops finite, so it underestimates), 0.44 here. The band
+    # [0.3, 0.6] rejects the surrogate times 2 or times 0.5, a derivative sent from the wrong step (issue 46's
+    # slot bug: 1.3 with a spread of 4x its mean) and a pathway whose gradient is cut (0).
     net = Network(NetworkConfig(kernel="xla", spike_gradient="fast_sigmoid"))
+    assert net.config.surrogate_scale == 0.05 and net.config.surrogate_width_mv == 2.0
     es_em, em = net.layout.synapses("ES->EM"), Populations(net.config).slice("EM")
     wiring = net.make_wiring(jax.random.key(0))
 
@@ -179,8 +182,10 @@ def test_surrogate_gradient_points_up_the_noise_averaged_spike_count():
     keys = jax.random.split(jax.random.key(5), 16)
     f = jax.jit(jax.vmap(count, (None, 0)))
     fd = float(f(1.1, keys).mean() - f(0.9, keys).mean()) / 0.2
-    sg = float(jax.jit(jax.vmap(jax.grad(count), (None, 0)))(1.0, keys).mean())
-    assert fd > 50 and 0.2 * fd <= sg <= 2.0 * fd, (fd, sg)
+    grads = np.asarray(jax.jit(jax.vmap(jax.grad(count), (None, 0)))(1.0, keys))
+    assert fd > 300 and np.all(np.isfinite(grads)), (fd, grads)
+    assert 0.3 * fd <= grads.mean() <= 0.6 * fd, (fd, grads.mean(), grads.mean() / fd)
+    assert grads.std() < 0.25 * grads.mean(), grads        # steady over noise streams (measured 8 % at 32)
 
 
 @pytest.mark.slow

@@ -22,7 +22,7 @@ class GradientConfig:
     reach_s: float = 1.0
     params: str = "plastic"
     width_mv: float = 2.0
-    scale: float = 0.03
+    scale: float = 0.05
 
     def __post_init__(self):
         check_range(self, "learning_rate", 0.0, 10.0, lo_open=True)

@@ -108,8 +108,9 @@ class NetworkConfig:
             of anything the network drives reach its weights. XLA kernel only; it changes how, not what: forward
             spikes are bit for bit those of ``kernel="xla"``.
         surrogate_width_mv: width w of the surrogate derivative, mV (only with ``spike_gradient``).
-        surrogate_scale: its dampening factor g (the derivative integrates to g over the margin); above about 0.05
-            this network's gradients explode (``jaxarm.network.surrogate``).
+        surrogate_scale: its dampening factor g (the derivative integrates to g over the margin); the default,
+            0.05, is the largest whose gradient stays steady over noise streams; from about 0.2 this network's
+            gradients explode (``jaxarm.network.surrogate``).
     """
 
     dt_ms: float = 0.25
@@ -139,7 +140,7 @@ class NetworkConfig:
     native_threads: int = field(default_factory=lambda: int(os.environ.get("JAXARM_NATIVE_THREADS", "1")))
     spike_gradient: str = "none"
     surrogate_width_mv: float = 2.0
-    surrogate_scale: float = 0.03
+    surrogate_scale: float = 0.05
 
     def __post_init__(self):
         check_range(self, "dt_ms", 0.01, 1.0)
