@@ -155,15 +155,18 @@ class Checkpointer:
         log of the failure is dropped, and the steps written before are untouched."""
         from jaxarm import parallel
 
-        try:
-            with _held_output() as held:
+        failure = None
+        with _held_output() as held:
+            try:
                 self._manager.save(int(step), args=ocp.args.Composite(state=ocp.args.StandardSave(state),
                                                                       meta=ocp.args.JsonSave(meta)), force=True)
                 self._manager.wait_until_finished()
-            held.replay()
-        except Exception as e:  # noqa: BLE001 - any failure of the write is reported as one line
-            self._discard(int(step))
-            raise CheckpointWriteError(self._write_failure(int(step), e)) from e
+            except Exception as e:  # noqa: BLE001 - any failure of the write is reported as one line
+                failure = e
+                self._discard(int(step))     # held too: TensorStore's writes still failing print as they end
+        if failure is not None:
+            raise CheckpointWriteError(self._write_failure(int(step), failure)) from failure
+        held.replay()
         parallel.barrier(f"checkpoint-saved-{step}")
         if parallel.is_main_process():
             try:
@@ -174,13 +177,21 @@ class Checkpointer:
         parallel.barrier(f"checkpoint-manifest-{step}")
 
     def _discard(self, step: int) -> None:
-        """Remove the unfinished folders of ``step`` (orbax's temporary ones); complete steps are never touched."""
-        for partial in self.directory.glob(f"{step}.orbax-checkpoint-tmp*"):
-            shutil.rmtree(partial, ignore_errors=True)
-        try:
+        """Remove the unfinished folders of ``step`` (orbax's temporary ones); complete steps are never touched.
+        Orbax's threads may still be writing when its save has already failed, so the folders are removed until
+        none has come back for a moment (at most a few seconds)."""
+        with contextlib.suppress(Exception):
+            self._manager.wait_until_finished()
+        quiet_since, deadline = time.monotonic(), time.monotonic() + 5.0
+        while time.monotonic() < deadline and time.monotonic() - quiet_since < 0.5:
+            partial = list(self.directory.glob(f"{step}.orbax-checkpoint-tmp*"))
+            for folder in partial:
+                shutil.rmtree(folder, ignore_errors=True)
+            if partial:
+                quiet_since = time.monotonic()
+            time.sleep(0.05)
+        with contextlib.suppress(Exception):   # the manager is not used again after a failed write
             self._manager.reload()
-        except Exception:  # noqa: BLE001 - the manager is not used again after a failed write
-            pass
 
     def _write_failure(self, step: int, error: Exception) -> str:
         kept = [s for s in self._manager.all_steps() if s != step] if self.directory.is_dir() else []
