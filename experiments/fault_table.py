@@ -56,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
                 failed += 1
                 code, line = "FAILED", f"{type(e).__name__}: {str(e).strip().splitlines()[0] if str(e).strip() else ''}"
             line = re.sub(re.escape(tmp) + r"/(\d\d-)?", "", line)
-            rows.append(f"| {i + 1} | {_cell(case.name)} | {code} | `{_cell(line)}` |")
+            quote = "``" if "`" in line else "`"     # a code span around text with backticks needs two
+            rows.append(f"| {i + 1} | {_cell(case.name)} | {code} | {quote} {_cell(line)} {quote} |")
     print("| # | case | exit | the answer (one line on stderr) |")
     print("|---|---|---|---|")
     print("\n".join(rows))
