@@ -448,6 +448,13 @@ def _export_constant(ws):
     return got
 
 
+def _export_truncated_npz(ws):
+    folder = ws.copy_of_reference("export-truncated")
+    path = folder / "trajectories.npz"
+    path.write_bytes(path.read_bytes()[:-200])
+    return cli(["export", "--trajectory", str(folder), "--to", "offline"])
+
+
 def _test_from_nothing(ws):
     return cli(["test", "--from", str(ws.fresh("empty"))])
 
@@ -548,6 +555,8 @@ CASES = [
     Case("`export --to offline`, angles of +-50 rad", _export_fifty_rad, 2,
          r"--trajectory .*: the simulated robot took none of its 200 packets \(out_of_range 200", group="robot"),
     Case("`export --to offline`, a constant trajectory", _export_constant, 0, None, group="robot"),
+    Case("`export --trajectory` a run folder, trajectories.npz truncated", _export_truncated_npz, 2,
+         r"--trajectory .*trajectories\.npz: a damaged \.npz archive", group="robot"),
     Case("`export --trajectory` a missing file",
          lambda ws: cli(["export", "--trajectory", str(ws.fresh("missing.csv")), "--to", "offline"]), 2,
          r"--trajectory .*missing\.csv: .*No such file", group="robot"),

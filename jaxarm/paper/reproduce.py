@@ -70,7 +70,11 @@ def _finished(run) -> dict | None:
 
     from jaxarm.experiment import _jsonable
 
-    res = json.loads(path.read_text())
+    try:
+        res = runfolder.read_json(path)
+    except runfolder.DamagedFile as e:     # written again from the batch's checkpoints, which were kept
+        print(f"jaxarm reproduce: note: {e}; writing it again", file=sys.stderr)
+        return None
     want = json.loads(json.dumps({"loop": _jsonable(asdict(run.config)), **run.meta()}))
     return res if _comparable(res.get("config")) == _comparable(want) else None
 

@@ -216,7 +216,11 @@ def _finished(out: Path, identity: dict) -> dict | None:
     path = out / RANKING_FILE
     if not path.is_file():
         return None
-    table = json.loads(path.read_text())
+    try:
+        table = runfolder.read_json(path)
+    except runfolder.DamagedFile as e:     # ranked again from the checkpoints, which were kept
+        print(f"jaxarm rerank: note: {e}; ranking again", file=sys.stderr)
+        return None
     return table if table.get("identity") == json.loads(json.dumps(identity)) else None
 
 

@@ -71,18 +71,20 @@ def load_trajectory(source: str | Path, network: int = 0) -> Trajectory:
             raise FileNotFoundError(f"{path}: a jaxarm test result folder must contain trajectories.npz")
         path = npz
     if path.suffix == ".npz":
-        with np.load(path) as z:
-            if "q" in z:
-                q = z["q"]
-                if q.ndim == 3:
-                    if not 0 <= network < q.shape[0]:
-                        raise ValueError(f"{path}: network {network} not in 0..{q.shape[0] - 1}")
-                    q = q[network]
-            else:
-                q = np.stack([z["shoulder"], z["elbow"]], axis=-1)
-            t = z["t"]
-            if t.ndim == 2:
-                t = t[network]
+        from jaxarm.runfolder import read_npz
+
+        z = read_npz(path)      # a damaged archive: ValueError naming the file
+        if "q" in z:
+            q = z["q"]
+            if q.ndim == 3:
+                if not 0 <= network < q.shape[0]:
+                    raise ValueError(f"{path}: network {network} not in 0..{q.shape[0] - 1}")
+                q = q[network]
+        else:
+            q = np.stack([z["shoulder"], z["elbow"]], axis=-1)
+        t = z["t"]
+        if t.ndim == 2:
+            t = t[network]
         return _check(t, q, str(path))
     with open(path, newline="") as f:
         reader = csv.reader(f)
