@@ -465,7 +465,8 @@ EVOLVE = ["evolve", "--arm", "simple", "--targets", "left", "--population", "4",
           "0.1"]
 RERANK = ["rerank", "--arm", "simple", "--target", "left", "--pool", "original", "--seeds", "1", "--epochs", "1",
           "--epoch-s", "0.1", "--test-s", "0.1", "--no-progress"]
-BUSY = r"--out .*: in use by jaxarm train \(PID \d+ on host [^,]+, since [^)]+\); wait for it to end or give another --out"
+BUSY = (r"--out .*: in use by jaxarm train \(PID \d+ on host [^,]+, since [^)]+\); wait for it to end or give "
+        r"another --out")
 STALE = r"jaxarm: note: .*jaxarm.lock: taking over the lock of jaxarm train \(PID \d+ .*no longer running"
 OUT_DEVICE = r"jaxarm: warning: --devices \d+ is more than the \d+ core\(s\) this process may use"
 
