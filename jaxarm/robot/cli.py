@@ -293,10 +293,10 @@ def export_main(argv: list[str]) -> int:
         try:
             report = tracking_report(log.columns())
         except ValueError as err:
-            packets = log.summary().get("packets", {})
-            why = ", ".join(f"{k} {v}" for k, v in packets.items() if v and k not in ("received", "ok"))
+            counts = log.summary().get("packets", {})
+            why = ", ".join(f"{k} {v}" for k, v in counts.items() if v and k not in ("received", "ok"))
             p.error(f"--trajectory {args.trajectory}: the simulated robot took none of its "
-                    f"{packets.get('received', 0)} packets ({why or err}); angles must lie within the WAM's joint "
+                    f"{counts.get('received', 0)} packets ({why or err}); angles must lie within the WAM's joint "
                     "ranges (jaxarm wam-sim --print-config)")
         if args.log:
             try:
