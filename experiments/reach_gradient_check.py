@@ -93,12 +93,15 @@ def main(argv=None) -> int:
         state, rec = fwd.run(trained.wiring, state, jax.random.key(0), mp, reach, learn=False)
         return jnp.mean(jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1))
 
-    mean_loss = jax.jit(lambda g: jnp.mean(jax.vmap(lambda k: loss(g, k))(streams)))
+    per_stream = jax.jit(lambda g: jax.vmap(lambda k: loss(g, k))(streams))
     check = jax.jit(lambda g, k: (loss(g, k), base.reach_loss(g, trained, mp, k)[0]))(gains, streams[0])
     assert float(check[0]) == float(check[1]), check      # the same loss as the one differentiated
-    loss0 = float(mean_loss(gains))
-    reference = {h: [float(mean_loss(gains + h * d) - mean_loss(gains - h * d)) / (2 * h) for d in dirs]
-                 for h in args.h}
+    loss0 = float(per_stream(gains).mean())
+    # central differences per stream (the same stream on both sides), their mean and its standard error
+    diffs = {h: [np.asarray(per_stream(gains + h * d) - per_stream(gains - h * d)) / (2 * h) for d in dirs]
+             for h in args.h}
+    reference = {h: [float(x.mean()) for x in v] for h, v in diffs.items()}
+    reference_se = {h: [float(x.std() / np.sqrt(len(x))) for x in v] for h, v in diffs.items()}
     rows = []
     for scale in args.scales:
         fns = fns_for(scale)
@@ -112,17 +115,21 @@ def main(argv=None) -> int:
     href = args.h[len(args.h) // 2]
     print(f"{args.arm} arm, {args.target} target, {args.reach_s:g} s reach, {args.streams} streams, mean loss "
           f"{loss0 * 100:.2f} cm")
-    print("| g | direction | reference " + " | ".join(f"h={h:g}" for h in args.h) + " | surrogate (± se) | "
+    print("| g | direction | reference (± se) " + " | ".join(f"h={h:g}" for h in args.h) + " | surrogate (± se) | "
           f"surrogate / reference (h={href:g}) |")
     print("|---|---|" + "---|" * len(args.h) + "---|---|")
     for r in rows:
         for j, name in enumerate(names):
             ref = reference[href][j]
-            print(f"| {r['scale']:g} | {name} | " + " | ".join(f"{reference[h][j]:.3g}" for h in args.h)
+            print(f"| {r['scale']:g} | {name} | " + " | ".join(f"{reference[h][j]:.2g} ± {reference_se[h][j]:.1g}"
+                                                              for h in args.h)
                   + f" | {r['grad'][j]:.3g} ± {r['grad_se'][j]:.2g} | {r['grad'][j] / ref:.2f} |")
     out = {"date": time.strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {os.cpu_count()} CPUs",
+           "command": "python experiments/reach_gradient_check.py " + " ".join(argv if argv is not None
+                                                                                else __import__("sys").argv[1:]),
            "arm": args.arm, "target": args.target, "reach_s": args.reach_s, "streams": args.streams,
            "seed": args.seed, "directions": names, "mean_loss_m": loss0, "reference": {str(h): v for h, v in reference.items()},
+           "reference_se": {str(h): v for h, v in reference_se.items()},
            "rows": rows, "wall_s": round(time.time() - t0, 1)}
     print(json.dumps(out))
     if args.json_out:
