@@ -15,8 +15,8 @@ from the training state of networks 0..N-1 (the authors' metaparameters, babblin
 * ``readout``: the EM window and excitations alone;
 * the native kernel's phases inside ``test``, from its profiling build (``jaxarm.network.native.enable_profiling``:
   the same kernel with phase timers; its overhead is printed): copy-in and set-up, the generators' (P) input,
-  noise draws, cell decay and potential, input jumps, threshold test, spike bookkeeping (spike times, counts, P
-  trains), delivery, plasticity tags;
+  noise draws, the cells' update (decay, input jumps and threshold test: one pass since 2026-12-05, three phases
+  before), spike bookkeeping (spike times, counts, P trains), delivery, plasticity tags;
 * ``XLA between kernel calls`` = test - kernel - arm - readout (state plumbing, P code update, the loop's scans);
 * ``host round trip``: one call of a compiled epoch function from Python per epoch (30 s), measured on an empty
   jitted call.
@@ -164,8 +164,8 @@ def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
 
 
 ROWS = ["train", "learning", "test", "kernel", "kernel: copy_in", "kernel: p_window", "kernel: noise",
-        "kernel: cell_decay", "kernel: jumps", "kernel: threshold", "kernel: spike_bookkeeping", "kernel: delivery",
-        "kernel: tags", "arm", "arm skeleton", "arm muscles", "readout", "XLA between kernel calls",
+        "kernel: cell_decay", "kernel: jumps", "kernel: threshold", "kernel: cells", "kernel: spike_bookkeeping",
+        "kernel: delivery", "kernel: tags", "arm", "arm skeleton", "arm muscles", "readout", "XLA between kernel calls",
         "host round trip", "profiled test (timer overhead)"]
 
 

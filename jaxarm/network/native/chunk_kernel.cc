@@ -35,10 +35,9 @@ namespace ffi = xla::ffi;
 #ifdef JAXARM_PROFILE
 #include <chrono>
 namespace prof {
-enum Phase { kCopyIn, kPWindow, kNoise, kCellDecay, kJumps, kThreshold, kSpikeBookkeeping, kDelivery, kTags,
-             kNumPhases };
+enum Phase { kCopyIn, kPWindow, kNoise, kCells, kSpikeBookkeeping, kDelivery, kTags, kNumPhases };
 int64_t ns[kNumPhases];
-int64_t spikes, synapse_events, tag_checks, input_cells, steps;
+int64_t spikes, synapse_events, tag_checks, steps;
 inline int64_t now() { return std::chrono::steady_clock::now().time_since_epoch().count(); }
 }  // namespace prof
 #define PROF_START int64_t prof_t = prof::now();
@@ -49,17 +48,16 @@ inline int64_t now() { return std::chrono::steady_clock::now().time_since_epoch(
     prof_t = prof_n;                      \
   }
 #define PROF_COUNT(counter, k) prof::counter += (k);
-extern "C" void JaxarmProfileRead(int64_t* out) {   // ns per phase, then the five event counters
+extern "C" void JaxarmProfileRead(int64_t* out) {   // ns per phase, then the four event counters
   for (int k = 0; k < prof::kNumPhases; ++k) out[k] = prof::ns[k];
   out[prof::kNumPhases] = prof::spikes;
   out[prof::kNumPhases + 1] = prof::synapse_events;
   out[prof::kNumPhases + 2] = prof::tag_checks;
-  out[prof::kNumPhases + 3] = prof::input_cells;
-  out[prof::kNumPhases + 4] = prof::steps;
+  out[prof::kNumPhases + 3] = prof::steps;
 }
 extern "C" void JaxarmProfileReset() {
   for (int k = 0; k < prof::kNumPhases; ++k) prof::ns[k] = 0;
-  prof::spikes = prof::synapse_events = prof::tag_checks = prof::input_cells = prof::steps = 0;
+  prof::spikes = prof::synapse_events = prof::tag_checks = prof::steps = 0;
 }
 #else
 #define PROF_START
@@ -98,8 +96,71 @@ inline uint32_t hash32(uint32_t x) {
   return x ^ (x >> 16);
 }
 
+// Branch-free float exp, expm1 and log1p, so the loops that call them vectorise (glibc's scalar calls were a fifth
+// of the kernel's time). Cody-Waite reduction and the Cephes minimax polynomials for exp and log; expm1 by the same
+// reduction and the Taylor series of expm1 (to r^9) on the reduced argument; log1p as log(u) + (x - (u - 1)) / u with u = 1 + x
+// rounded (the first-order correction of that rounding), by its series for |x| < 1e-3.
+// Errors against the exact functions, measured in tests/test_native_math.py over their whole float ranges: at most
+// 0.97 ulp (exp), 1.5 ulp (expm1, near x = ln2 / 2) and 1.1 ulp (log1p); mean 0.2-0.3 ulp.
+namespace fastmath {
+inline float bits_to_float(int32_t b) {
+  float f;
+  std::memcpy(&f, &b, 4);
+  return f;
+}
+inline int32_t float_to_bits(float f) {
+  int32_t b;
+  std::memcpy(&b, &f, 4);
+  return b;
+}
+inline float exp(float x) {
+  x = std::min(std::max(x, -87.3f), 88.7f);
+  const float k = std::floor(x * 1.44269504088896341f + 0.5f);
+  const float r = (x - k * 0.693359375f) - k * -2.12194440e-4f;
+  const float z = r * r;
+  const float p = (((((1.9875691500e-4f * r + 1.3981999507e-3f) * r + 8.3334519073e-3f) * r + 4.1665795894e-2f) * r +
+                    1.6666665459e-1f) * r + 5.0000001201e-1f) * z + r + 1.0f;
+  return p * bits_to_float((int32_t(k) + 127) << 23);
+}
+inline float expm1(float x) {
+  // expm1(x) = 2^k (expm1(r) + 1) - 1, r = x - k ln2 in [-ln2/2, ln2/2]: one polynomial for every x (no exp and
+  // no select between two computations, which a vectorised loop would both pay for)
+  x = std::min(std::max(x, -87.3f), 88.7f);
+  const float k = std::floor(x * 1.44269504088896341f + 0.5f);
+  const float r = (x - k * 0.693359375f) - k * -2.12194440e-4f;
+  const float t = r * (1.0f / 2 + r * (1.0f / 6 + r * (1.0f / 24 + r * (1.0f / 120 + r * (1.0f / 720 + r * (
+      1.0f / 5040 + r * (1.0f / 40320 + r * (1.0f / 362880))))))));
+  const float p = r + r * t;                                  // expm1(r)
+  const float scale = bits_to_float((int32_t(k) + 127) << 23);
+  return k == 0.0f ? p : scale * p + (scale - 1.0f);
+}
+inline float log(float u) {   // u > 0, finite
+  const int32_t b = float_to_bits(u);
+  int32_t e = ((b >> 23) & 0xff) - 127;
+  float m = bits_to_float((b & 0x007fffff) | 0x3f800000);   // [1, 2)
+  const bool high = m > 1.41421356f;
+  m = high ? 0.5f * m : m;
+  e = high ? e + 1 : e;
+  const float f = m - 1.0f;
+  const float z = f * f;
+  float y = ((((((((7.0376836292e-2f * f - 1.1514610310e-1f) * f + 1.1676998740e-1f) * f - 1.2420140846e-1f) * f +
+                 1.4249322787e-1f) * f - 1.6668057665e-1f) * f + 2.0000714765e-1f) * f - 2.4999993993e-1f) * f +
+             3.3333331174e-1f) * f * z;
+  const float ef = float(e);
+  y += ef * -2.12194440e-4f;
+  y -= 0.5f * z;
+  return (f + y) + ef * 0.693359375f;
+}
+inline float log1p(float x) {   // x > -1
+  const float u = 1.0f + x;
+  const float d = u - 1.0f;
+  const float series = x - x * x * (0.5f - x * (1.0f / 3 - x * 0.25f));   // |x| < 1e-3: error below x^5 / 5
+  return std::fabs(x) < 1e-3f ? series : log(u) + (x - d) / u;
+}
+}  // namespace fastmath
+
 inline float event_load(float w, float e_rev, float max_jump_fraction) {
-  return -e_rev * std::log1p(-std::min(w / e_rev, max_jump_fraction));
+  return -e_rev * fastmath::log1p(-std::min(w / e_rev, max_jump_fraction));
 }
 
 struct View {  // one input or output: base pointer, per-network element count, element size, batch strides
@@ -130,6 +191,9 @@ inline int64_t batch_offset(const View& v, const std::vector<int64_t>& idx) {
 }
 
 // The vectorisable passes of a step, as functions of restrict-qualified arrays (so the compiler may vectorise).
+// The vectorisable passes of a step, as functions of restrict-qualified arrays (so the compiler may vectorise).
+// N = #{k < kmax : u >= T_k}, every lane against every threshold (vectorised; skipping the lanes below T_0, a
+// few percent of which are not, measured slower: the second pass is scalar).
 void noise_counts(int64_t lanes, int64_t kmax, uint32_t s, const uint32_t* __restrict__ lane_key,
                   const uint32_t* __restrict__ thr, uint32_t* __restrict__ ub, int32_t* __restrict__ cb) {
   for (int64_t l = 0; l < lanes; ++l) {
@@ -165,58 +229,84 @@ void add_noise(int64_t n, const int32_t* __restrict__ cb, const float* __restric
   for (int64_t i = 0; i < n; ++i) inb[i] += float(cb[i]) * w[i];
 }
 
-void decay(int64_t n, float* __restrict__ x, const float* __restrict__ d) {
-  for (int64_t i = 0; i < n; ++i) x[i] *= d[i];
-}
+struct CellConstantsView {   // per-cell constants (native_cell_floats) and the physics, for cell_update
+  const float *rmp, *vth, *vblock, *d_ampa, *d_nmda, *d_gprox, *d_gdist, *d_ahp, *d_rr, *d_rr_first;
+  const int32_t* n_ref;
+  float e_ampa, e_nmda, e_gaba, neg_inv_ampa, inv_gaba, inv_ampa, inv_nmda, neg_mg_slope, mg_ratio, vm_min, vm_max;
+};
 
-void refractory(int64_t n, int32_t* __restrict__ since, float* __restrict__ excess, const int32_t* __restrict__ n_ref,
-                const float* __restrict__ d_rr, const float* __restrict__ d_rr_first) {
+// One clock step of every cell, in one vectorised pass (jaxarm.network.cell.cell_step): decay of every component,
+// refractory bookkeeping, V (the deviation every driving force of this step uses), the jumps of this step's input
+// in[4 n] (AMPA, NMDA, GABA-prox, GABA-dist: loads with Seq, weights without), the threshold test into spiked[n].
+// Every cell computes its jumps, with selects where the model has conditions (a cell without input keeps its
+// components): computing them densely with the vectorised exp/expm1 costs less than finding the fifth of the cells
+// that have input, gathering and scattering them. PerEvent: NetworkConfig.crossing = "per_event"; OnEvent:
+// threshold_test = "on_event".
+template <bool PerEvent, bool Seq, bool OnEvent>
+void cell_update(int64_t n, float* __restrict__ ampa, float* __restrict__ nmda, float* __restrict__ gprox,
+                 float* __restrict__ gdist, float* __restrict__ ahp, int32_t* __restrict__ since,
+                 float* __restrict__ excess, const float* __restrict__ in, const CellConstantsView& c,
+                 uint8_t* __restrict__ spiked) {
+  const float *__restrict__ rmp = c.rmp, *__restrict__ vth = c.vth, *__restrict__ vblock = c.vblock;
+  const float *__restrict__ d_ampa = c.d_ampa, *__restrict__ d_nmda = c.d_nmda, *__restrict__ d_gprox = c.d_gprox,
+              *__restrict__ d_gdist = c.d_gdist, *__restrict__ d_ahp = c.d_ahp, *__restrict__ d_rr = c.d_rr,
+              *__restrict__ d_rr_first = c.d_rr_first;
+  const int32_t* __restrict__ n_ref = c.n_ref;
+  const float e_ampa = c.e_ampa, e_nmda = c.e_nmda, e_gaba = c.e_gaba;
+  // cell i reads and writes only element i of every array (GCC honours restrict on parameters only, and the
+  // constants arrive in a struct)
+#pragma GCC ivdep
   for (int64_t i = 0; i < n; ++i) {
+    float a = ampa[i] * d_ampa[i], b = nmda[i] * d_nmda[i], g = gprox[i] * d_gprox[i], d = gdist[i] * d_gdist[i];
+    const float e = ahp[i] * d_ahp[i];
     const int32_t sn = std::min(since[i], kSinceMax - 1) + 1;
     const float rr = sn > n_ref[i] ? d_rr[i] : (sn == n_ref[i] ? d_rr_first[i] : 1.0f);
-    excess[i] *= rr;
+    const float ex = excess[i] * rr;
+    const float v = std::min(std::max(a + b + g + d + e, rmp[i]), -rmp[i]);
+    const float ai = in[i], ni = in[n + i], pi = in[2 * n + i], di = in[3 * n + i];
+    float ja, jp, jd;
+    if constexpr (Seq) {
+      ja = (e_ampa - v) * -fastmath::expm1(ai * c.neg_inv_ampa);
+      jp = (v - e_gaba) * -fastmath::expm1(pi * c.inv_gaba);
+      jd = (v - e_gaba) * -fastmath::expm1(di * c.inv_gaba);
+    } else {
+      ja = ai * (1.0f - v * c.inv_ampa);
+      const float gf = 1.0f - v * c.inv_gaba;
+      jp = pi * gf;
+      jd = di * gf;
+    }
+    const float block = 1.0f / (1.0f + fastmath::exp(c.neg_mg_slope * (rmp[i] + v)) * c.mg_ratio);
+    a = ai != 0.0f ? std::max(a + ja, 0.0f) : a;
+    b = (b < e_nmda && ni != 0.0f) ? b + ni * block * (1.0f - v * c.inv_nmda) : b;
+    g = (pi != 0.0f && g > e_gaba) ? std::min(g - jp, 0.0f) : g;
+    d = (di != 0.0f && d > e_gaba) ? std::min(d - jd, 0.0f) : d;
+    const float vm = std::min(std::max(rmp[i] + a + b + g + d + e, c.vm_min), c.vm_max);
+    bool spike = (sn >= n_ref[i]) & (vm > vth[i] + ex) & (vm <= vblock[i]);
+    if constexpr (PerEvent)   // below threshold before this step's input, above Vblock after it: crossed
+      spike |= (sn >= n_ref[i]) & (vm > vblock[i]) & (rmp[i] + v <= vth[i] + ex);
+    if constexpr (OnEvent)    // the original tests only on an arriving event
+      spike &= (ai != 0.0f) | (ni != 0.0f) | (pi != 0.0f) | (di != 0.0f);
+    ampa[i] = a;
+    nmda[i] = b;
+    gprox[i] = g;
+    gdist[i] = d;
+    ahp[i] = e;
+    excess[i] = ex;
     since[i] = sn;
+    spiked[i] = spike;
   }
 }
 
-void potential(int64_t n, const float* __restrict__ a, const float* __restrict__ b, const float* __restrict__ c,
-               const float* __restrict__ d, const float* __restrict__ e, const float* __restrict__ rmp,
-               float* __restrict__ v) {
-  for (int64_t i = 0; i < n; ++i) v[i] = std::min(std::max(a[i] + b[i] + c[i] + d[i] + e[i], rmp[i]), -rmp[i]);
+template <bool PerEvent>
+void cell_update(bool seq, bool on_event, int64_t n, float* ampa, float* nmda, float* gprox, float* gdist,
+                 float* ahp, int32_t* since, float* excess, const float* in, const CellConstantsView& c,
+                 uint8_t* spiked) {
+  if (seq && !on_event) cell_update<PerEvent, true, false>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  else if (seq) cell_update<PerEvent, true, true>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  else if (!on_event) cell_update<PerEvent, false, false>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  else cell_update<PerEvent, false, true>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
 }
 
-void has_input(int64_t n, const float* __restrict__ in, uint8_t* __restrict__ out) {
-  for (int64_t i = 0; i < n; ++i)
-    out[i] = (in[i] != 0.0f) | (in[n + i] != 0.0f) | (in[2 * n + i] != 0.0f) | (in[3 * n + i] != 0.0f);
-}
-
-void threshold(int64_t n, const float* __restrict__ a, const float* __restrict__ b, const float* __restrict__ c,
-               const float* __restrict__ d, const float* __restrict__ e, const float* __restrict__ rmp,
-               const int32_t* __restrict__ since, const int32_t* __restrict__ n_ref, const float* __restrict__ vth,
-               const float* __restrict__ excess, const float* __restrict__ vblock, float vm_min, float vm_max,
-               uint8_t* __restrict__ out) {
-  for (int64_t i = 0; i < n; ++i) {
-    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], vm_min), vm_max);
-    out[i] = (since[i] >= n_ref[i]) & (vm > vth[i] + excess[i]) & (vm <= vblock[i]);
-  }
-}
-
-// NetworkConfig.crossing = "per_event": a cell that was below threshold before this step's input (v: its deviation
-// then) and is above Vblock after it crossed the threshold at one of the step's events, where the original fires it
-void crossed_per_event(int64_t n, const float* __restrict__ a, const float* __restrict__ b,
-                       const float* __restrict__ c, const float* __restrict__ d, const float* __restrict__ e,
-                       const float* __restrict__ rmp, const float* __restrict__ v,
-                       const int32_t* __restrict__ since, const int32_t* __restrict__ n_ref,
-                       const float* __restrict__ vth, const float* __restrict__ excess,
-                       const float* __restrict__ vblock, float vm_min, float vm_max, uint8_t* __restrict__ out) {
-  for (int64_t i = 0; i < n; ++i) {
-    const float vm = std::min(std::max(rmp[i] + a[i] + b[i] + c[i] + d[i] + e[i], vm_min), vm_max);
-    out[i] |= (since[i] >= n_ref[i]) & (vm > vblock[i]) & (rmp[i] + v[i] <= vth[i] + excess[i]);
-  }
-}
-
-// PerEvent = Attrs.per_event, a template argument so that the default clock-step rule compiles to the loop it had
-// before the option existed (an off-by-default branch inside the step loop measurably slowed it)
 template <bool PerEvent>
 void run_network(const std::vector<View>& in, const std::vector<View>& out, const std::vector<int64_t>& idx,
                  int64_t flat, const Attrs& a) {
@@ -339,21 +429,26 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     }
   }
 
-  // Per-step scratch. The step is split into passes the compiler vectorises (noise, decay, threshold test) and
-  // one scalar pass over the cells that received input this step (a few percent of them), where the exponentials
-  // of the jumps are; the result is the same as one pass per cell.
-  std::vector<float> v_buf(n);
+  // Per-step scratch. The step is split into passes the compiler vectorises (noise, the cells) and scalar passes
+  // over the spikes (a few per step).
   std::vector<uint32_t> u_buf(3 * n);
   std::vector<int32_t> cnt_buf(3 * n);
   // byte flags, padded to whole 8-byte words (zero) so they can be scanned a word at a time
-  std::vector<uint8_t> spk_buf(n + 8, 0), inp_buf(n + 8, 0);
+  std::vector<uint8_t> spk_buf(n + 8, 0);
   std::vector<int32_t> fired;
   fired.reserve(n);
-  float* __restrict__ vb = v_buf.data();
+  const CellConstantsView cc{rmp,    vth,    vblock,       d_ampa,   d_nmda,   d_gprox,      d_gdist,  d_ahp,
+                             d_rr,   d_rr_first, n_ref,    e_ampa,   a.e_nmda,  e_gaba,       neg_inv_ampa,
+                             inv_gaba, inv_ampa, inv_nmda, neg_mg_slope, mg_ratio, a.vm_min, a.vm_max};
+  // a fired cell's row of weights (loads), gathered then converted vectorised
+  int64_t max_width = 0;
+  for (const Tables& tb : groups) max_width = std::max(max_width, tb.out_width);
+  std::vector<float> row_buf(max_width);
+  float* __restrict__ row_w = row_buf.data();
   uint32_t* __restrict__ ub = u_buf.data();
   int32_t* __restrict__ cb = cnt_buf.data();
   uint8_t* __restrict__ sb = spk_buf.data();
-  uint8_t* __restrict__ hb = inp_buf.data();
+
   const bool limited = any_limited(3 * n, events_left);  // the test's EM noise, or nothing to spend
   PROF_MARK(kPWindow)
   PROF_COUNT(steps, n_steps)
@@ -370,55 +465,9 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     add_noise(n, cb, noise_w, inb);
     add_noise(2 * n, cb + n, noise_w + n, inb + 2 * n);
     PROF_MARK(kNoise)
-    // 2c. decay, refractory bookkeeping and V (the deviation every driving force of this step uses)
-    decay(n, ampa, d_ampa);
-    decay(n, nmda, d_nmda);
-    decay(n, gprox, d_gprox);
-    decay(n, gdist, d_gdist);
-    decay(n, ahp, d_ahp);
-    refractory(n, since, excess, n_ref, d_rr, d_rr_first);
-    potential(n, ampa, nmda, gprox, gdist, ahp, rmp, vb);
-    // 2d. jumps, only where there is input (a zero input gives a zero jump and leaves every component as it is)
-    has_input(n, inb, hb);
-    PROF_MARK(kCellDecay)
-    for (int64_t i0 = 0; i0 < n; i0 += 8) {
-      uint64_t word;
-      std::memcpy(&word, hb + i0, 8);
-      if (word == 0) continue;
-      for (int64_t i = i0; i < std::min(i0 + 8, n); ++i) {
-      if (!hb[i]) continue;
-      PROF_COUNT(input_cells, 1)
-      const float ampa_in = inb[i], nmda_in = inb[n + i], gp_in = inb[2 * n + i], gd_in = inb[3 * n + i];
-      const float v = vb[i];
-      float ja, jgp, jgd;
-      if (seq) {
-        ja = ampa_in != 0.0f ? (e_ampa - v) * -std::expm1(ampa_in * neg_inv_ampa) : 0.0f;
-        jgp = gp_in != 0.0f ? (v - e_gaba) * -std::expm1(gp_in * inv_gaba) : 0.0f;
-        jgd = gd_in != 0.0f ? (v - e_gaba) * -std::expm1(gd_in * inv_gaba) : 0.0f;
-      } else {
-        ja = ampa_in * (1.0f - v * inv_ampa);
-        const float gf = 1.0f - v * inv_gaba;
-        jgp = gp_in * gf;
-        jgd = gd_in * gf;
-      }
-      if (ampa_in != 0.0f) ampa[i] = std::max(ampa[i] + ja, 0.0f);
-      if (nmda[i] < e_nmda && nmda_in != 0.0f) {
-        const float block = 1.0f / (1.0f + std::exp(neg_mg_slope * (rmp[i] + v)) * mg_ratio);
-        nmda[i] = nmda[i] + nmda_in * block * (1.0f - v * inv_nmda);
-      }
-      if (gp_in != 0.0f && gprox[i] > e_gaba) gprox[i] = std::min(gprox[i] - jgp, 0.0f);
-      if (gd_in != 0.0f && gdist[i] > e_gaba) gdist[i] = std::min(gdist[i] - jgd, 0.0f);
-      }
-    }
-    PROF_MARK(kJumps)
-    // 2e. threshold test (vectorised), then the spikes' own updates (rare)
-    threshold(n, ampa, nmda, gprox, gdist, ahp, rmp, since, n_ref, vth, excess, vblock, a.vm_min, a.vm_max, sb);
-    if constexpr (PerEvent)
-      crossed_per_event(n, ampa, nmda, gprox, gdist, ahp, rmp, vb, since, n_ref, vth, excess, vblock, a.vm_min,
-                        a.vm_max, sb);
-    if (a.on_event)   // the original tests only on an arriving event
-      for (int64_t i = 0; i < n; ++i) sb[i] &= hb[i];
-    PROF_MARK(kThreshold)
+    // 2c-e. every cell's decay, jumps and threshold test (one vectorised pass), then the spikes' own updates
+    cell_update<PerEvent>(seq, a.on_event != 0, n, ampa, nmda, gprox, gdist, ahp, since, excess, inb, cc, sb);
+    PROF_MARK(kCells)
     fired.clear();
     for (int64_t i0 = 0; i0 < n; i0 += 8) {
       uint64_t word;
@@ -464,13 +513,15 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       const float* wt = tb.out_weight + r * tb.out_width;
       const float* wn = tb.out_nmda + r * tb.out_width;
       PROF_COUNT(synapse_events, tb.out_width)
-      for (int64_t j = 0; j < tb.out_width; ++j) {
-        if (syn[j] >= n_syn) continue;  // padding (weight 0)
-        float w = wt[j] * wgain[syn[j]];
-        if (seq) w = event_load(w, e_rev, jump_cap);
+      const int64_t wd = tb.out_width;
+      for (int64_t j = 0; j < wd; ++j) row_w[j] = syn[j] < n_syn ? wt[j] * wgain[syn[j]] : 0.0f;  // padding: 0
+      if (seq)
+        for (int64_t j = 0; j < wd; ++j) row_w[j] = event_load(row_w[j], e_rev, jump_cap);
+      for (int64_t j = 0; j < wd; ++j) {
+        if (syn[j] >= n_syn) continue;  // padding
         const int32_t delay = packed[j] & delay_mask;
         const int64_t idx = ((int64_t(m) + delay) % n_slots) * width + (packed[j] >> delay_bits);
-        ring[idx] += w;
+        ring[idx] += row_w[j];
         if (exc) ring[idx + n] += wn[j];
       }
     }
@@ -569,6 +620,12 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
 }
 
 }  // namespace
+
+// fastmath for tests (tests/test_native_math.py): out[i] = f(x[i]) with f = exp (0), expm1 (1), log1p (2)
+extern "C" void JaxarmFastMath(const float* x, float* out, int64_t n, int64_t which) {
+  for (int64_t i = 0; i < n; ++i)
+    out[i] = which == 0 ? fastmath::exp(x[i]) : which == 1 ? fastmath::expm1(x[i]) : fastmath::log1p(x[i]);
+}
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
                               ffi::Ffi::Bind()
