@@ -2,6 +2,7 @@
 
     python benchmarks/profile.py [--json-out docs/results/profile.json] [--networks 1 64] [--arm simple musculoskeletal]
         [--seconds 2 0.5] [--repeats 3]
+    python benchmarks/profile.py --table-from docs/results/profile.json     # the table of a saved run
 
 The process pins itself to one CPU and the native kernel to one thread. For each arm and network count it times,
 as medians of ``--repeats`` compiled runs of ``--seconds`` simulated seconds (one per network count), starting
@@ -197,7 +198,13 @@ def main(argv=None) -> int:
     ap.add_argument("--arm", nargs="+", default=["simple", "musculoskeletal"], choices=["simple", "musculoskeletal"])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json-out", default=None)
+    ap.add_argument("--table-from", default=None, metavar="JSON",
+                    help="print the table of a saved result file (e.g. docs/results/profile.json) and exit")
     args = ap.parse_args(argv)
+    if args.table_from:
+        with open(args.table_from) as f:
+            print(table(json.load(f)["results"]))
+        return 0
     seconds = args.seconds if len(args.seconds) == len(args.networks) else args.seconds[:1] * len(args.networks)
     results = [profile_one(arm, n, s, args.repeats) for arm in args.arm for n, s in zip(args.networks, seconds)]
     print(table(results))

@@ -178,9 +178,9 @@ def test_em_event_budget_stops_the_test_noise_in_both_kernels():
 @needs_native
 def test_population_rates_over_seconds_match_xla():
     """The kernels' last bits differ (exp/log: the native kernel's own vectorised functions, XLA's), so their spike
-    trains part after a while like two machines'; what they compute must not: 8 networks x 4 s from the same start,
-    the rate of every population agrees within 5 % (measured 0.1-1.1 %; a per-cell rate standard error over 8 x 4 s
-    is about 2 %), and so does the count of EM spikes per muscle group."""
+    trains may part after a while like two machines'; what they compute must not: 8 networks x 4 s from the same
+    start, the spike count of every population agrees within 5 %. (Measured 2026-12-05: the counts are identical,
+    the trains had not parted in these 4 s.)"""
     nx, nn = pair()
     keys = jax.random.split(jax.random.key(8), 8)
     wirings = jax.vmap(nx.make_wiring)(keys)
