@@ -231,7 +231,7 @@ def test_no_training_reach_is_scored_on_the_test_noise():
     assert np.all(first != test) and np.all(second != test) and np.all(first != second), (first, second, test)
 
 
-@pytest.mark.parametrize("arm", ["simple", "musculoskeletal"])
+@pytest.mark.parametrize("arm", ["simple", pytest.param("musculoskeletal", marks=pytest.mark.slow)])
 def test_gradient_networks_are_tested_by_rstdps_test_on_the_published_arm(arm):
     # The same trained networks through gradient learning's test and R-STDP's (make_train without gradient, the
     # default kernel, the published arm): the same bits. Training runs the smooth arm and the XLA kernel; the test

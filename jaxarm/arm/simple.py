@@ -32,12 +32,13 @@ class SimpleArm:
 
     def init(self, q0=None) -> SimpleArmState:
         """q0: (2,) start angles in rad (default the start posture (0.62, 1.53))."""
-        q0 = jnp.asarray(START_POSTURE_RAD if q0 is None else q0, dtype=jnp.float32)
+        # float32, or float64 under jax.enable_x64 (for float64 references in tests), as the musculoskeletal arm
+        q0 = jnp.asarray(START_POSTURE_RAD if q0 is None else q0, dtype=jnp.result_type(float))
         return SimpleArmState(q_acc=q0, q_prev=self._clip(q0))
 
     def step(self, state: SimpleArmState, u) -> SimpleArmState:
         """u: (4,) excitations (sh-ext, sh-flex, el-ext, el-flex). Advances 10 ms."""
-        u = jnp.asarray(u, dtype=jnp.float32)
+        u = jnp.asarray(u, dtype=jnp.result_type(float))
         dq = self.config.gain_rad * jnp.stack([u[1] - u[0], u[3] - u[2]])
         q_acc = state.q_acc + dq
         if not self.config.windup:
