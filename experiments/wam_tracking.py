@@ -115,15 +115,18 @@ def summarise(per_seed: list[dict]) -> dict:
             for key in path:
                 v = v[key]
             vals.append(v)
-        return statistics.fmean(vals)
+        # a measure a seed's run has none of (e.g. a 5 s window in a shorter run: the report's null) is left out
+        vals = [v for v in vals if v is not None]
+        return statistics.fmean(vals) if vals else None
 
     out = {}
     for metric in ("mean_abs_error_deg", "sd_abs_error_deg", "error_over_displacement"):
         out[metric] = {}
         for joint in ("shoulder", "elbow"):
             ours, paper = mean((metric, joint)), PAPER[metric][joint]
-            out[metric][joint] = {"ours": ours, "paper": paper, "ratio": ours / paper,
-                                  "within_25_percent": abs(ours / paper - 1) <= 0.25}
+            ratio = None if ours is None else ours / paper
+            out[metric][joint] = {"ours": ours, "paper": paper, "ratio": ratio,
+                                  "within_25_percent": ratio is not None and abs(ratio - 1) <= 0.25}
     out["delay_ms"] = {
         "paper": PAPER["delay_ms"],
         "whole_signal": {j: mean(("delay_ms", "whole_signal", j)) for j in ("shoulder", "elbow")},
