@@ -134,15 +134,16 @@ def test_readout_and_arm_gradient_matches_richardson_differences(kind):
 
 
 def test_train_by_gradient_then_retest_from_the_folder(tmp_path, capsys):
-    # One network, one epoch of two 1 s reaches on the simple arm: the command trains, records how, and a re-test
-    # of the folder (its checkpoint holds Adam's state too) gives the same test.
+    # One network, one epoch of two 0.3 s reaches on the simple arm, a 0.3 s test: the command trains, records how,
+    # and a re-test of the folder (its checkpoint holds Adam's state too) gives the same test.
     out = tmp_path / "g"
-    args = ["--learning", "gradient", "--networks", "1", "--epochs", "1", "--epoch-s", "2", "--no-progress"]
+    args = ["--learning", "gradient", "--networks", "1", "--epochs", "1", "--epoch-s", "0.6", "--reach-s", "0.3",
+            "--test-s", "0.3", "--no-progress"]
     assert train_main(args + ["--out", str(out)]) == 0
     res = json.loads((out / "results.json").read_text())
     # tested as R-STDP's networks are: the configuration's kernel (native where it is built), not the training's XLA
     from jaxarm.network import native
-    assert res["config"]["learning"] == dataclasses.asdict(GradientConfig())
+    assert res["config"]["learning"] == dataclasses.asdict(GradientConfig(reach_s=0.3))
     assert res["config"]["kernel"] == ("native" if native.available() else "xla")
     assert res["history"]["rewards"] == [0] and res["history"]["lost_spikes"] == 0
     # every step's loss, gradient norm and skip are kept: two steps, finite, losses in metres
@@ -150,7 +151,7 @@ def test_train_by_gradient_then_retest_from_the_folder(tmp_path, capsys):
     assert steps["gradient_loss_m"].shape == (1, 1, 2) and steps["gradient_finite"].all()
     assert 0.0 < steps["gradient_loss_m"].min() < 0.5 and np.all(steps["gradient_grad_norm"] > 0)
     assert res["history"]["gradient"]["skipped_steps"] == [0]
-    assert retest_main(["--from", str(out)]) == 0
+    assert retest_main(["--from", str(out), "--test-s", "0.3"]) == 0
     again = json.loads((out / "test" / "results.json").read_text())
     assert again["networks"][0]["min_distance_m"] == res["networks"][0]["min_distance_m"]
     capsys.readouterr()
