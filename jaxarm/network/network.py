@@ -311,9 +311,10 @@ class Network:
         def body(carry, _):
             s, spike_step, value, near_step, nearest = carry
             s, spike_step, spiked = self._cell_step(s, spike_step)
-            # the surrogate density is largest where |Vm - VTHC| is smallest (cells outside refractoriness)
-            margin = jnp.abs(cell_mod.membrane_potential(s.cells, c, self.config.spec.physics)
-                             - (c.vth + s.cells.vthc_excess))
+            # the surrogate density is largest where |Vm - VTHC| is smallest (cells outside refractoriness); it
+            # only chooses a step, so no derivative is carried for it
+            margin = jnp.abs(cell_mod.membrane_potential(jax.lax.stop_gradient(s.cells), c, self.config.spec.physics)
+                             - (c.vth + jax.lax.stop_gradient(s.cells.vthc_excess)))
             margin = jnp.where(s.cells.steps_since_spike >= c.n_refractory, margin, jnp.inf)
             closer = margin < nearest
             near_step = jnp.where(closer, s.step, near_step)
