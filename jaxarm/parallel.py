@@ -122,14 +122,18 @@ def cores_from(affinity: int, quota: float | None) -> int:
     return affinity if quota is None else max(1, min(affinity, math.floor(quota + 1e-9)))
 
 
+def _affinity_count() -> int:
+    """Cores in this process's affinity mask (the OS's CPU count where there is no mask)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:   # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
 def usable_cores() -> int:
     """CPU cores this process may run on: its affinity mask (where the OS has one), at most the whole CPUs of its
     cgroup v2 CPU quota (``cpu.max``: a ``docker run --cpus 2`` container on a 64-core host has 2)."""
-    try:
-        affinity = len(os.sched_getaffinity(0))
-    except AttributeError:   # pragma: no cover - not Linux
-        affinity = os.cpu_count() or 1
-    return cores_from(affinity, cgroup_cpu_limit())
+    return cores_from(_affinity_count(), cgroup_cpu_limit())
 
 
 def _cluster_detected() -> bool:
@@ -195,11 +199,7 @@ _warned_devices = False
 
 def _quota_text() -> str:
     quota = cgroup_cpu_limit()
-    try:
-        affinity = len(os.sched_getaffinity(0))
-    except AttributeError:   # pragma: no cover - not Linux
-        affinity = os.cpu_count() or 1
-    return f"affinity mask {affinity}" + (f", cgroup CPU quota {quota:g}" if quota is not None else "")
+    return f"affinity mask {_affinity_count()}" + (f", cgroup CPU quota {quota:g}" if quota is not None else "")
 
 
 def _warn_devices(devices: int) -> None:
