@@ -6,8 +6,8 @@ batch of scatters sized for the worst case). ``chunk_kernel.cc`` does the same w
 branches where the model is sparse (most cells get no input in most steps), and delivers each spike where it lands,
 so it has no spike-list capacity to overflow. The model, the state layout and the noise stream are the XLA path's
 (:meth:`jaxarm.network.network.Network._chunk`); a state can be advanced by either path and continued by the other.
-Results agree with the XLA path to float rounding (tests/test_native_kernel.py), not bit for bit: exp/log come from
-the C library, not from XLA, and spike trains of a chaotic network diverge after a while, as they would between
+Results agree with the XLA path to float rounding (tests/test_native_kernel.py), not bit for bit: exp/expm1/log1p are the
+kernel's own vectorisable ones (:func:`fast_math`, within 1.5 ulp), not XLA's, and spike trains of a chaotic network diverge after a while, as they would between
 two machines.
 
 Build: compiled on first use with the system C++ compiler (``$CXX`` or ``c++``; C++17) against the XLA FFI headers
@@ -130,6 +130,7 @@ def _register(profile: bool = False) -> tuple[bool, str]:
         lib = ctypes.cdll.LoadLibrary(path)
         jax.ffi.register_ffi_target(TARGET + ("_profile" if profile else ""),
                                     jax.ffi.pycapsule(lib.JaxarmNetworkChunk), platform="cpu")
+        lib.JaxarmFastMath.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64]
         _LIBS[profile] = lib
     except Exception as e:  # noqa: BLE001 - any loading problem means "not available", with the reason
         return False, f"loading {path} failed: {e}"
@@ -147,9 +148,7 @@ def fast_math(name: str, x) -> np.ndarray:
         raise RuntimeError(f"jaxarm native network kernel unavailable: {why}")
     x = np.ascontiguousarray(x, np.float32)
     out = np.empty_like(x)
-    f = _LIBS[False].JaxarmFastMath
-    f.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64]
-    f(x.ctypes.data, out.ctypes.data, x.size, FAST_MATH.index(name))
+    _LIBS[False].JaxarmFastMath(x.ctypes.data, out.ctypes.data, x.size, FAST_MATH.index(name))
     return out
 
 

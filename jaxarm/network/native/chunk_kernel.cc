@@ -5,14 +5,15 @@
 //   1. the generators' input (the paper's P -> ES) of the whole chunk written into the ring at the chunk start
 //      (deliver_p_window); "P" below stands for every generator cell (ids n_all - n_p .. n_all - 1);
 //   2. per step m: read and clear ring slot m % n_slots; Poisson noise counts from the integer hash
-//      (bit-identical to noise.noise_counts), limited by each lane's event budget (noise.draw_events); INTF6 cell update (cell.cell_step); P trains (proprio.p_step);
+//      (bit-identical to noise.noise_counts), limited by each lane's event budget (noise.draw_events); INTF6 cell
+//      update (cell.cell_step); P trains (proprio.p_step);
 //      last / previous spike times and spike counts; spikes of the step delivered into the ring at
 //      (m + delay) % n_slots and plastic inputs tagged.
 // The XLA path delivers after blocks of L <= the shortest delay and refractory period; delivering each spike at
 // its own step is the same (its arrival slot is not read before m + delay; a cell fires at most once per block,
 // so "the presynaptic spike at or before t_post" is the same spike). Spike lists have no capacity here: nothing
 // is ever lost and no extra passes exist. Floating-point results differ from XLA's in the last bits (exp/log
-// implementations, summation order); the noise counts are exact.
+// implementations: fastmath below, summation order); the noise counts are exact.
 //
 // Batching: every input carries the batch dimensions of vmap's "expand_dims" method in front of its per-network
 // shape (size 1 where not batched); the kernel broadcasts them, so shared wiring is read in place, never copied.
@@ -301,10 +302,11 @@ template <bool PerEvent>
 void cell_update(bool seq, bool on_event, int64_t n, float* ampa, float* nmda, float* gprox, float* gdist,
                  float* ahp, int32_t* since, float* excess, const float* in, const CellConstantsView& c,
                  uint8_t* spiked) {
-  if (seq && !on_event) cell_update<PerEvent, true, false>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
-  else if (seq) cell_update<PerEvent, true, true>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
-  else if (!on_event) cell_update<PerEvent, false, false>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
-  else cell_update<PerEvent, false, true>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  auto run = [&](auto update) { update(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked); };
+  if (seq && !on_event) run(cell_update<PerEvent, true, false>);
+  else if (seq) run(cell_update<PerEvent, true, true>);
+  else if (!on_event) run(cell_update<PerEvent, false, false>);
+  else run(cell_update<PerEvent, false, true>);
 }
 
 template <bool PerEvent>
