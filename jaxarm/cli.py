@@ -5,6 +5,7 @@ subsystem's heavy imports (MuJoCo, sockets) never slow another. Each target is `
 """
 from __future__ import annotations
 
+import argparse
 import importlib
 import os
 import sys
@@ -75,6 +76,34 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+class _Caught(Exception):
+    """Raised in place of a command's ``parse_args`` by :func:`parser`."""
+
+
+def parser(name: str) -> argparse.ArgumentParser:
+    """The argument parser of command ``name`` as its main function builds it, caught at its ``parse_args`` before
+    the command does anything: the command-line reference (docs/hooks.py) is made from these, so it lists exactly the
+    options each command accepts."""
+    from unittest import mock
+
+    module, func = COMMANDS[name][0].split(":")
+    main_function = getattr(importlib.import_module(module), func)
+    caught = []
+
+    def catch(self, args=None, namespace=None):
+        caught.append(self)
+        raise _Caught
+
+    with mock.patch.object(argparse.ArgumentParser, "parse_args", catch):
+        try:
+            main_function([])
+        except _Caught:
+            pass
+    if not caught:
+        raise RuntimeError(f"jaxarm {name}: its main function returned without parsing its arguments")
+    return caught[0]
+
+
 def _raised_in_mujoco(e: BaseException) -> bool:
     """Whether the exception was raised inside the mujoco package (e.g. at its import)."""
     tb = e.__traceback__
@@ -92,8 +121,6 @@ SCALE_OUT_COMMANDS = ("train", "test", "evolve", "reproduce", "rerank")
 def _start_devices(name: str, argv: list[str]) -> int:
     """Set up this process's devices (and join the other processes) before the command's module is imported: some
     libraries (evosax) compute at import, after which JAX's devices are fixed. Returns an exit code on bad options."""
-    import argparse
-
     from jaxarm import parallel
     from jaxarm.config.validate import ConfigError
 

@@ -272,7 +272,8 @@ def _add_common(ap):
                     help="target(s); one subfolder of --out each when several (paper: left bottom)")
     ap.add_argument("--networks", type=int, default=4, help="networks trained in parallel (paper: 30)")
     ap.add_argument("--seed", type=int, default=0, help="network i uses PRNGKey(seed + i)")
-    ap.add_argument("--epochs", type=int, default=12, help="training epochs (paper: 12)")
+    ap.add_argument("--epochs", type=int, default=None,
+                    help="training epochs (default: --preset's, else 12, the paper's)")
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
     _add_test_noise_option(ap)
@@ -325,9 +326,15 @@ def train_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=runfolder.folder_argument, required=True,
                     help="output folder (a rerun resumes from its checkpoints; one command at a time: a second is "
                          "refused while the first holds OUT/jaxarm.lock)")
+    ap.add_argument("--preset", default=None, metavar="NAME",
+                    help="train with a stored preset's metaparameters instead of the authors': its best set "
+                         "(`jaxarm reproduce --list-presets` lists the names; or the path of a preset .json file); "
+                         "--epochs defaults to the preset's")
+    ap.add_argument("--set-from-preset", type=int, default=None, metavar="INDEX",
+                    help="with --preset: its ranked set INDEX instead of its best set (0 = the top-ranked)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
-                    help="train and test with this metaparameter changed from the authors' value (repeatable; "
-                         "e.g. v_em_max=60); the training length is --epochs")
+                    help="train and test with this metaparameter changed from the authors' value, or from "
+                         "--preset's (repeatable; e.g. v_em_max=60); the training length is --epochs")
     add_network_arguments(ap, "; the options below override it")
     ap.add_argument("--dt-ms", type=float, default=None,
                     help=f"network clock step, ms (default {NetworkConfig().dt_ms}; must divide 1 ms, e.g. 0.1 to "
@@ -362,9 +369,13 @@ def train_main(argv: list[str] | None = None) -> int:
     add_record_arguments(ap, train=True)
     parallel.add_arguments(ap)
     args = ap.parse_args(argv)
+    try:
+        base = preset_metaparams(args)
+    except ConfigError as e:
+        ap.error(str(e))
     _check(ap, args)
     if args.task == "centre-out-8":
-        return _centre_out_main(ap, args)
+        return _centre_out_main(ap, args, base)
     try:
         parallel.start_from_arguments(args)
         configs = _configs(args)
@@ -374,7 +385,7 @@ def train_main(argv: list[str] | None = None) -> int:
         record = record_config(args)
     except ConfigError as e:
         ap.error(str(e))
-    mp = MetaParams.from_dict(overrides)
+    mp = MetaParams.from_dict({**base, **overrides})
     with runfolder.claim(args.out, "jaxarm train"):   # one writer per folder; --out checked before any work
         return _train_targets(ap, args, configs, mp, record)
 
@@ -402,7 +413,7 @@ def _train_targets(ap, args, configs, mp, record) -> int:
     return 0
 
 
-def _centre_out_main(ap, args) -> int:
+def _centre_out_main(ap, args, base: dict) -> int:
     """``jaxarm train --task centre-out-8``: train and test in one batch, write results.json and trajectories.npz."""
     import time
 
@@ -419,7 +430,7 @@ def _centre_out_main(ap, args) -> int:
             raise ConfigError("--task centre-out-8 runs in one process (no --coordinator yet)")
         # the batch over every device of this process (--devices N narrows it), one kernel thread per device
         config = LoopConfig(arm=args.arm, backend=args.backend, network=net, task=task.task_config())
-        mp = MetaParams.from_dict(_parse_overrides(args.overrides))
+        mp = MetaParams.from_dict({**base, **_parse_overrides(args.overrides)})
     except ConfigError as e:
         ap.error(str(e))
     seeds = list(range(args.seed, args.seed + args.networks))
@@ -440,6 +451,40 @@ def _centre_out_main(ap, args) -> int:
           + f" (naive: {sum(r['naive']['per_target'].values())} reaches in all); networks by targets reached (0..8): "
           f"{r['trained']['targets_reached_per_network']} -> {args.out / 'results.json'}")
     return 0
+
+
+def preset_metaparams(args) -> dict[str, float]:
+    """The metaparameters ``--preset NAME [--set-from-preset INDEX]`` name ({} without ``--preset``: the authors'),
+    and ``args.epochs`` when not given: the preset's protocol's, else its set's ``epochs`` (12 without a preset).
+    :class:`ConfigError` in one line for an unknown name or an index out of range."""
+    from jaxarm.learning.metaparams import ORIGINAL
+    from jaxarm.paper import presets
+
+    if args.preset is None:
+        if args.set_from_preset is not None:
+            raise ConfigError(f"--set-from-preset {args.set_from_preset}: give the preset with --preset NAME")
+        values = {}
+        epochs = ORIGINAL["epochs"]
+    else:
+        try:
+            preset = presets.load(args.preset)
+        except ConfigError as e:
+            raise ConfigError(f"--preset: {e}") from None
+        i = args.set_from_preset
+        if i is None:
+            values = preset.best
+        elif not preset.top:
+            raise ConfigError(f"--set-from-preset {i}: preset {preset.name!r} has no ranked sets, only its best set; "
+                              "leave --set-from-preset out")
+        elif not 0 <= i < len(preset.top):
+            raise ConfigError(f"--set-from-preset {i}: preset {preset.name!r} has {len(preset.top)} ranked sets; "
+                              f"give an index in [0, {len(preset.top) - 1}]")
+        else:
+            values = preset.top[i]["metaparams"]
+        epochs = preset.protocol["epochs"] if preset.protocol else values["epochs"]
+    if args.epochs is None:
+        args.epochs = int(round(epochs))
+    return dict(values)
 
 
 def _parse_overrides(items: list[str]) -> dict[str, float]:
