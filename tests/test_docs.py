@@ -5,6 +5,8 @@ import importlib.util
 import re
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
@@ -60,3 +62,33 @@ def test_cli_reference_lists_every_command_and_option():
     train = page.split("\n## jaxarm train\n")[1].split("\n## jaxarm ")[0]
     assert re.search(r"<code>--preset NAME</code> \| – \| train with a stored preset", train)
     assert re.search(r"<code>--networks NETWORKS</code> \| <code>4</code> \|", train)
+
+
+#: The headline numbers each page must take from its result file (a placeholder, or on README.md a marker after the
+#: written-out number): the reproduction counts of both arms, and on the site the distances after entry.
+COUNTS = [(f"reproduce_{arm}.json", f"targets.{target}.{mode}") for arm in ("musculoskeletal", "simple")
+          for target in ("left", "bottom") for mode in ("seeds", "top30", "paper")]
+DISTANCES = [("reproduce_musculoskeletal.json", f"targets.{target}.measures.{mode}.distance_after_m.mean")
+             for target in ("left", "bottom") for mode in ("seeds", "top30")]
+HEADLINES = {"README.md": COUNTS, "docs/index.md": COUNTS + DISTANCES, "docs/reproducing.md": COUNTS + DISTANCES}
+
+
+def _references(text: str) -> set[tuple[str, str]]:
+    specs = [m.group(1) for pattern in (hooks.PLACEHOLDER, hooks.MARKER) for m in pattern.finditer(text)]
+    return {tuple(p.strip() for p in spec.split(":")[:2]) for spec in specs}
+
+
+@pytest.mark.parametrize("page", sorted(HEADLINES))
+def test_headline_numbers_come_from_their_result_files(page):
+    text = (ROOT / page).read_text()
+    missing = [f"{f} : {p}" for f, p in HEADLINES[page] if (f, p) not in _references(text)]
+    assert not missing, f"{page} states these headline numbers without their result file: {missing}"
+
+
+def test_every_number_taken_from_a_result_file_is_the_files():
+    """A written-out number followed by <!-- result: FILE : PATH --> (README.md, read unrendered on GitHub) must be
+    the file's; every placeholder must resolve (the site's build renders them, docs/hooks.py)."""
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]:
+        text = page.read_text()
+        assert not hooks.marker_mismatches(text), f"{page.relative_to(ROOT)}: {hooks.marker_mismatches(text)}"
+        hooks.render(text)

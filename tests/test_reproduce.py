@@ -4,6 +4,7 @@ Kept fast the way test_closed_loop.py keeps `jaxarm train` fast: the simple arm,
 of 0.2 s and a 0.2 s test. Every run below uses that one loop configuration, so the compiled functions are shared.
 """
 import json
+import re
 import shlex
 
 import pytest
@@ -176,7 +177,7 @@ def test_reproduce_both_modes_resumes_after_interruption(tmp_path, preset_dir):
     for mode in ("seeds", "top30"):   # the table counts what the folders' per-network results say
         nets = json.loads((out / "left" / mode / "results.json").read_text())["networks"]
         assert row[mode] == sum(n["success"] for n in nets) and len(nets) == 2
-    assert {"arm", "preset", "command", "seed", "timing", "paper"} <= set(table)
+    assert {"arm", "preset", "command", "date", "machine", "commit", "seed", "timing", "paper"} <= set(table)
     assert table["command"].startswith("jaxarm reproduce --preset quad")
     batch = table["timing"]["batches"]["2 epochs"]   # both modes trained in one batch of 4 networks
     assert batch["epochs_run"] == 1 and batch["batch_networks"] == 4     # resumed: only the second epoch ran
@@ -355,3 +356,13 @@ def test_a_presets_protocol_sets_its_default_length(tmp_path):
     assert presets.Preset.from_json(ms.to_json()).protocol == ms.protocol
     with pytest.raises(ConfigError, match="protocol = .*must be"):
         presets.Preset(name="x", description="", arms=("simple",), best=ORIGINAL, protocol={"epochs": 0})
+
+
+def test_a_result_names_its_date_machine_and_commit():
+    """success_table.json (and every result page that quotes it, docs/results/) says when, where and from which
+    code it was measured."""
+    from jaxarm.paper.reproduce import measured_on
+
+    m = measured_on()
+    assert re.fullmatch(r"\d{4}-\d{2}-\d{2}", m["date"]) and re.search(r", \d+ cores$", m["machine"])
+    assert m["commit"] is None or re.fullmatch(r"[0-9a-f]{7,40}(-dirty)?", m["commit"])

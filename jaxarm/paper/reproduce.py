@@ -330,7 +330,7 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
         "arm": arm, "backend": backend, "preset": preset.name if preset is not None else f"default ({arm} arm)",
         "presets": {name: {"description": p.description, "arms": list(p.arms), "provenance": p.provenance}
                     for name, p in presets.items()},
-        "command": command, "seed": seed, "set": overrides,
+        "command": command, **measured_on(), "seed": seed, "set": overrides,
         "protocol": {"networks_seeds": networks, "top_sets": max((len(m["top30"]["sets"]) for m in plan.values()
                                                                  if "top30" in m), default=0),
                      "epochs_seeds": first["seeds"]["epochs"],
@@ -357,6 +357,29 @@ def reproduce(preset: preset_lib.Preset | None, arm: str, targets, out: Path, *,
         log(results_markdown(table))
         log(f"-> {out / TABLE_FILE}")
     return table
+
+
+def measured_on() -> dict:
+    """When, where and from which code a result is measured: ``date`` (UTC), ``machine`` (architecture and usable
+    cores) and ``commit`` (this checkout's, ``-dirty`` with uncommitted changes to tracked files; None outside a git
+    checkout)."""
+    import platform
+    import subprocess
+    from datetime import datetime, timezone
+
+    def git(*args) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(Path(__file__).resolve().parent), *args], capture_output=True,
+                                  text=True, timeout=60)
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
+
+    head = git("rev-parse", "--short", "HEAD")
+    commit = None if head is None else head + ("-dirty" if git("status", "--porcelain", "--untracked-files=no")
+                                               else "")
+    return {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d"),
+            "machine": f"{platform.machine()}, {parallel.usable_cores()} cores", "commit": commit}
 
 
 def _measures(folder: Path) -> dict:
@@ -533,9 +556,6 @@ def _reproduce_centre_out(args, preset, argv) -> int:
     """``jaxarm reproduce --task centre-out-8``: :func:`jaxarm.task.centre_out.run_with_control` with the preset's
     best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; one process,
     every core as the native kernel's threads; a rerun skips the finished condition."""
-    import platform
-    from datetime import datetime, timezone
-
     from jaxarm.experiment import _parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
@@ -557,9 +577,7 @@ def _reproduce_centre_out(args, preset, argv) -> int:
           f"control), {task.epochs_per_target} x {task.epoch_duration_s:g} s per target, cycled "
           f"({task.task_config().epochs} epochs), metaparameters "
           f"{'of preset ' + preset.name if preset is not None else 'of the authors'} -> {args.out}")
-    meta = {"command": shlex.join(["jaxarm", "reproduce", *argv]),
-            "date": datetime.now(timezone.utc).strftime("%Y-%m-%d"),
-            "machine": f"{platform.machine()}, {parallel.usable_cores()} cores"}
+    meta = {"command": shlex.join(["jaxarm", "reproduce", *argv]), **measured_on()}
     with runfolder.claim(args.out, "jaxarm reproduce --task centre-out-8"):
         result = run_with_control(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task,
                                   range(args.seed, args.seed + args.networks), mp, args.out, meta=meta)
