@@ -92,3 +92,12 @@ def test_every_number_taken_from_a_result_file_is_the_files():
         text = page.read_text()
         assert not hooks.marker_mismatches(text), f"{page.relative_to(ROOT)}: {hooks.marker_mismatches(text)}"
         hooks.render(text)
+
+
+def test_user_pages_cite_nothing_outside_the_repository():
+    """A newcomer's pages state the facts they rely on, cited to the paper or the authors' code, not to the project's
+    extracted specification (outside the repository) or to issue numbers."""
+    outside = re.compile(r"spec §|reference_values\.md|\bissue('s| \d+)", re.I)
+    for page in ("README.md", "docs/index.md", "docs/getting-started.md", "docs/reproducing.md", "docs/model.md"):
+        hits = [m.group(0) for m in outside.finditer((ROOT / page).read_text())]
+        assert not hits, f"{page}: {hits}"
