@@ -1,5 +1,7 @@
-"""Does a network's result depend on where it sits in its group of 8 (docs/scaling.md, "Known limit")?
+"""Does a network's result depend on where it sits in its group of 8 (docs/scaling.md, jaxarm.cpu_arithmetic)?
 
+    python experiments/group_place.py --arm simple --epochs 4 --train-s 30 --compare copies  # key 0 at all 8 places
+    JAXARM_XLA_FMA=1 python experiments/group_place.py --arm simple --epochs 4 --train-s 30 --compare copies
     python experiments/group_place.py --arm musculoskeletal --train-s 10 --compare place   # key 0 at place 0 vs 4
     python experiments/group_place.py --arm musculoskeletal --train-s 20 --compare mates   # key 0 beside 1-7 vs 9-15
     python experiments/group_place.py --arm musculoskeletal --target bottom --preset msarm-rerank-bottom-stay \
@@ -7,7 +9,9 @@
 
 Trains one group of 8 networks (one device; the authors' metaparameters, or with --preset key k trained with the
 preset's k-th top set as in a reproduction's (b)) twice and prints which keys' whole training state differs in any
-bit between the two batches.
+bit between the two batches; ``--compare copies`` trains one group holding key 0 eight times and prints the places
+whose state differs from place 1's. ``JAXARM_XLA_FMA=1`` keeps XLA's fused multiply-add (jaxarm.cpu_arithmetic),
+under which the copies differ at place 0 (simple arm, 4 x 30 s, 2026-12-05).
 """
 import argparse
 import tempfile
@@ -18,7 +22,8 @@ import numpy as np
 from jaxarm import parallel
 
 BATCHES = {"place": ([0, 1, 2, 3, 4, 5, 6, 7], [4, 5, 6, 7, 0, 1, 2, 3]),
-           "mates": ([0, 1, 2, 3, 4, 5, 6, 7], [0, 9, 10, 11, 12, 13, 14, 15])}
+           "mates": ([0, 1, 2, 3, 4, 5, 6, 7], [0, 9, 10, 11, 12, 13, 14, 15]),
+           "copies": ([0] * 8,)}
 
 
 def main() -> None:
@@ -48,6 +53,12 @@ def main() -> None:
                           Target.stack([config.task.target] * 8), d, {"seeds": seeds})
             carry = batch.train(progress=False)[0]
         leaves = [np.asarray(x) for x in jax.tree.leaves(parallel.host(carry))]
+        if args.compare == "copies":
+            differ = [r for r in range(8) if any(np.any(x[r] != x[1]) for x in leaves)]
+            print(f"{args.arm}, {args.target}, {args.preset or 'original'}, {args.epochs} x {args.train_s:g} s, key 0 "
+                  f"at every place of one group: places whose training state differs from place 1's: "
+                  f"{differ or 'none'}")
+            return
         states.append({s: [x[r] for x in leaves] for r, s in enumerate(seeds)})
     common = sorted(set(states[0]) & set(states[1]))
     differ = [s for s in common if any(np.any(a != b) for a, b in zip(states[0][s], states[1][s]))]
