@@ -361,6 +361,36 @@ def padded_size(n: int, m: Mesh | None = None, at_once: int = 0) -> int:
     return _round_up(n, (m or mesh()).size, at_once)
 
 
+def group_span(devices: int, at_once: int) -> int:
+    """Networks a batch must be a multiple of to fill whole groups: ``devices`` x ``at_once`` (x 1 for 0, a
+    device's whole share: then only a multiple of the devices)."""
+    return max(1, devices) * max(1, at_once)
+
+
+def padding_note(n: int, what: str, devices: int, at_once: int, processes: int = 1,
+                 fill: tuple[str, Callable[[int], int], int] | None = None, unit: str = "networks") -> str:
+    """One line on how a batch of ``n`` rows (``unit``; ``what``: e.g. "a generation's 512 evaluations (256
+    candidates x 2 seeds)") runs on ``devices`` devices of ``processes`` processes in groups of ``at_once``: whole
+    groups, or the padded size, the fraction of what runs that is padding and, with ``fill`` = (option, the batch's
+    size for a value of it, its value now), the option's smallest value at or above the current one whose batch
+    fills the groups (or the batch size that would, when no value of the option does)."""
+    span = group_span(devices, at_once)
+    padded = -(-n // span) * span
+    where = f"on {devices} device{'s' if devices != 1 else ''}"
+    where += f" of {processes} processes" if processes > 1 else ""
+    where += f" in groups of {at_once}" if at_once else ""
+    if padded == n:
+        return f"{what}: {where}, whole groups (no padding)"
+    text = (f"{what}: {where}, padded to {padded}: {100 * (padded - n) / padded:.3g} % of what runs is padding "
+            "(computed and dropped)")
+    if fill is not None:
+        option, size, now = fill
+        value = next((v for v in range(max(1, now), max(1, now) + span + 1) if size(v) % span == 0), None)
+        if value is not None:
+            return text + f"; {option} {value} fills the groups ({size(value)} {unit})"
+    return text + f"; a batch of {padded} {unit} (a multiple of {span}) fills the groups"
+
+
 def sharded_map(fn: Callable, m: Mesh | None = None, at_once: int | None = None) -> Callable:
     """``fn`` mapped over the leading axis of its arguments (inside a ``jit``), split over the mesh ``m`` when one
     is given (else on the default device), each device's share in groups of ``at_once`` networks (default
@@ -454,4 +484,4 @@ def describe() -> dict:
 
 __all__ = ["AXIS", "BATCHED", "REPLICATED", "start", "add_arguments", "start_from_arguments", "mesh", "padded_size",
            "sharded_map", "is_main_process", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe",
-           "usable_cores", "cgroup_cpu_limit", "parse_cpu_max", "COORDINATOR_TIMEOUT_S"]
+           "usable_cores", "cgroup_cpu_limit", "parse_cpu_max", "COORDINATOR_TIMEOUT_S", "group_span", "padding_note"]

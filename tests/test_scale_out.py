@@ -235,3 +235,47 @@ print(jax.jit(jax.shard_map(share, mesh=parallel.mesh(), in_specs=P(parallel.AXI
     parallel._relax_collective_waits()
     assert os.environ["XLA_FLAGS"].split() == ["--xla_cpu_collective_call_warn_stuck_timeout_seconds=5",
                                                "--xla_cpu_collective_call_terminate_timeout_seconds=21600"]
+
+
+def test_a_padded_batch_says_how_much_is_padding_and_what_fills_it():
+    """A search's generation and a reproduction's batch that do not fill whole groups on their mesh say so in one
+    line: the padded size, the fraction that is padding, and the --population / --networks that fills the groups;
+    one that fills them says so too. The docs' SLURM recipe (8 nodes x 32 cores, 256 devices in groups of 8): 256
+    candidates x 2 seeds padded 75 %, 1024 x 2 whole."""
+    from types import SimpleNamespace
+
+    from jaxarm import parallel
+    from jaxarm.evolve.cli import generation_layout
+    from jaxarm.evolve.search import EvolveConfig
+    from jaxarm.paper.reproduce import batch_layout
+    from jaxarm.run import SetsRun
+
+    def search(population, seeds, mesh):
+        return generation_layout(EvolveConfig(population_size=population, seeds_per_candidate=seeds), mesh)
+
+    two, one = parallel.mesh(), one_device_mesh()
+    assert search(5, 2, two) == ("a generation's 10 evaluations (5 candidates x 2 seed(s)): on 2 devices in groups "
+                                 "of 8, padded to 16: 37.5 % of what runs is padding (computed and dropped); "
+                                 "--population 8 fills the groups (16 evaluations)")
+    assert search(8, 2, two).endswith("on 2 devices in groups of 8, whole groups (no padding)")
+    assert search(4, 2, one).endswith("on 1 device in groups of 8, whole groups (no padding)")
+    assert search(3, 3, one).endswith("padded to 16: 43.8 % of what runs is padding (computed and dropped); "
+                                      "--population 8 fills the groups (24 evaluations)")
+    recipe = parallel.padding_note(512, "g", 256, 8, 8, ("--population", lambda p: 2 * p, 256))
+    assert recipe == ("g: on 256 devices of 8 processes in groups of 8, padded to 2048: 75 % of what runs is padding "
+                      "(computed and dropped); --population 1024 fills the groups (2048 networks)")
+    assert parallel.padding_note(2048, "g", 256, 8, 8).endswith("whole groups (no padding)")
+    assert parallel.padding_note(10, "g", 4, 0) == "g: on 4 devices, padded to 12: 16.7 % of what runs is padding " \
+                                                  "(computed and dropped); a batch of 12 networks (a multiple of 4) " \
+                                                  "fills the groups"
+
+    class Sets(SetsRun):     # a (b) group of a reproduction: one network per set, whatever --networks says
+        def __init__(self, n):
+            self.n = n
+
+    default = [SimpleNamespace(n=30), Sets(30), SimpleNamespace(n=30), Sets(30)]   # 2 targets x ((a) 30 + (b) 30)
+    assert batch_layout(default, two.size, 8) == (
+        "the batch's 120 networks: on 2 devices in groups of 8, padded to 128: 6.25 % of what runs is padding "
+        "(computed and dropped); --networks 34 fills the groups (128 networks)")
+    assert batch_layout(default, 1, 4).endswith("whole groups (no padding)")
+    assert batch_layout([Sets(30)], 2, 8).endswith("; a batch of 32 networks (a multiple of 16) fills the groups")

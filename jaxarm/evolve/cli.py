@@ -139,8 +139,9 @@ def evolve_main(argv: list[str] | None = None) -> int:
         ignored = [n for n in fitness.ignores if n not in freeze]   # searched or frozen by default alike
         if ignored:
             implied = dict(fitness.implied)
-            print(f"jaxarm evolve: {args.fitness} does not use {', '.join(ignored)}: frozen at "
-                  + ", ".join(f"{n}={implied.get(n, ORIGINAL[n])}" for n in ignored))
+            if parallel.is_main_process():
+                print(f"jaxarm evolve: {args.fitness} does not use {', '.join(ignored)}: frozen at "
+                      + ", ".join(f"{n}={implied.get(n, ORIGINAL[n])}" for n in ignored))
             freeze.update({n: implied.get(n, ORIGINAL[n]) for n in ignored})
             search = None if search is None else [n for n in search if n not in ignored]
             if search == []:
@@ -179,8 +180,10 @@ def evolve_main(argv: list[str] | None = None) -> int:
                                "network_seconds_per_eval": reevaluate_fitness.network_seconds_per_eval}
             if re_targets != options.targets:
                 reevaluate_meta["targets"] = list(re_targets)
-        print(f"jaxarm evolve: {args.fitness} on {space.n_dims} metaparameters ({', '.join(space.names)}); "
-              f"frozen: {json.dumps(dict(space.frozen))}")
+        if parallel.is_main_process():
+            print(f"jaxarm evolve: {args.fitness} on {space.n_dims} metaparameters ({', '.join(space.names)}); "
+                  f"frozen: {json.dumps(dict(space.frozen))}")
+            print(f"jaxarm evolve: {generation_layout(config)}", flush=True)
         with runfolder.claim(args.out, "jaxarm evolve"):
             result = run_search(fitness, space, config, args.out, fitness_meta=meta, max_chunks=args.max_chunks,
                                 reevaluate_seeds=args.reevaluate_seeds, reevaluate_fitness=reevaluate_fitness,
@@ -189,6 +192,20 @@ def evolve_main(argv: list[str] | None = None) -> int:
         print(f"jaxarm evolve: {e}", file=sys.stderr)
         return 2
     return 0 if result.finished or args.max_chunks is not None else 1
+
+
+def generation_layout(config, mesh=None) -> str:
+    """How a generation's candidates x seeds run on ``mesh`` (default: every device of every process): whole groups
+    of :func:`jaxarm.parallel.networks_at_once` per device, or the fraction of padding and the ``--population`` that
+    fills them (as :func:`jaxarm.evolve.search.make_search` splits a generation)."""
+    import jax
+
+    mesh = parallel.mesh() if mesh is None else mesh
+    P, S = config.population_size, config.seeds_per_candidate
+    at_once = parallel.networks_at_once() or (0 if config.eval_batch_size in (0, P) else config.eval_batch_size * S)
+    return parallel.padding_note(P * S, f"a generation's {P * S} evaluations ({P} candidates x {S} seed(s))",
+                                 mesh.size, at_once, jax.process_count(), ("--population", lambda p: p * S, P),
+                                 unit="evaluations")
 
 
 def _apply_task(args) -> None:

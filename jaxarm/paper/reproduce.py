@@ -90,6 +90,19 @@ def _comparable(config):
     return config
 
 
+def batch_layout(groups: list, devices: int, at_once: int) -> str:
+    """How a reproduction's batch (``groups``: its (target, mode) runs) fills its groups of ``at_once`` networks on
+    ``devices`` devices: whole groups, or the padding and the ``--networks`` that fills them (the seeds groups have
+    ``--networks`` networks each, the sets groups one per set)."""
+    from jaxarm.run import SetsRun
+
+    n = sum(g.n for g in groups)
+    seeded = [g for g in groups if not isinstance(g, SetsRun)]
+    fixed = n - sum(g.n for g in seeded)
+    fill = ("--networks", lambda v: len(seeded) * v + fixed, seeded[0].n) if seeded else None
+    return parallel.padding_note(n, f"the batch's {n} networks", devices, at_once, jax.process_count(), fill)
+
+
 def _train_together(groups: list, out: Path, progress: bool, stop_after: int | None, log):
     """Train every group's networks in one batch (one compiled program over every device), test them, and write
     each group's ordinary `jaxarm train` folder (results, trajectories, figure, and a checkpoint of its trained
@@ -117,6 +130,7 @@ def _train_together(groups: list, out: Path, progress: bool, stop_after: int | N
                    "label": f"{first.config.arm}: {len(groups)} groups, {start} networks"})
     log(f"training {start} networks of {len(groups)} groups in one batch over {batch.mesh.size} device(s) -> "
         f"{out / 'checkpoints'}")
+    log(batch_layout(groups, batch.mesh.size, batch.at_once))
     carry, history, wall, epochs_run, compile_s = batch.train(progress=progress, stop_after=stop_after)
     if int(parallel.host(carry.epoch)[0]) < first.config.task.epochs:
         return None
