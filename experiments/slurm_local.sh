@@ -17,6 +17,7 @@
 # run failed; 77 SLURM cannot start here (not root and no passwordless sudo, no apt-get, the packages cannot be
 # installed, a daemon does not start, the node never becomes idle): one line "slurm_local: cannot start SLURM: ...".
 set -uo pipefail
+invocation="bash experiments/slurm_local.sh${*:+ $*}"
 cd "$(dirname "$0")/.."
 repo=$(pwd)
 result=""
@@ -31,7 +32,8 @@ py=${PYTHON:-.venv/bin/python}
 [ -x "$py" ] || py=$(command -v python3)
 py=$(cd "$(dirname "$py")" && pwd)/$(basename "$py")
 bin=$(dirname "$py")
-[ -x "$bin/jaxarm" ] || { echo "slurm_local: no jaxarm beside $py (PYTHON=... names the environment's python)"; exit 2; }
+[ -x "$bin/jaxarm" ] || { echo "slurm_local: no jaxarm beside $py (PYTHON=... names the environment's python)"
+                         exit 2; }
 work=${WORK:-runs/slurm-local}
 mkdir -p "$work" && work=$(cd "$work" && pwd)
 [ -n "$result" ] || result=$work/slurm_local.json
@@ -53,7 +55,8 @@ if ! command -v slurmctld >/dev/null || ! command -v slurmd >/dev/null || ! comm
   if ! $sudo apt-get install -y --no-install-recommends slurm-wlm munge >"$work/apt.log" 2>&1; then
     $sudo apt-get update >>"$work/apt.log" 2>&1
     $sudo apt-get install -y --no-install-recommends slurm-wlm munge >>"$work/apt.log" 2>&1 \
-      || cannot "apt-get install slurm-wlm munge failed: $(grep -E '^E:' "$work/apt.log" | head -1) (log: $work/apt.log)"
+      || cannot "apt-get install slurm-wlm munge failed: $(grep -E '^E:' "$work/apt.log" | head -1)" \
+                "(log: $work/apt.log)"
   fi
   hash -r
 fi
@@ -164,6 +167,8 @@ say "sinfo: $(sinfo -h -o '%P %a %D %T %c CPUs %N' | head -1)"
 
 # --- the recipe under sbatch, then the same command as one process -------------------------------------------------
 export PATH=$bin:$PATH
+jaxarm_from=$("$py" -c 'import os, jaxarm; print(os.path.dirname(jaxarm.__file__))' 2>/dev/null)
+say "jaxarm: $bin/jaxarm, importing $jaxarm_from"
 # shellcheck disable=SC2206
 extra=($scaled)
 submit=(sbatch --parsable --wait --nodes=1 --ntasks-per-node=2 --cpus-per-task=1 --time="$job_time"
@@ -181,7 +186,9 @@ sed 's/^/    /' "$job_log" 2>/dev/null
 sacct_line=$(scontrol show job "$jobid" 2>/dev/null | grep -oE 'JobState=[A-Z_]+|ExitCode=[0-9:]+|NumTasks=[0-9]+' \
              | tr '\n' ' ')
 say "scontrol: ${sacct_line:-(job record gone)}"
-recipe=$(grep -E '^srun ' -A1 experiments/slurm_evolve.sbatch | sed -E 's/^srun //; s/ *\\$//; s/"\$@"//' | tr -s ' \n' '  ')
+# the recipe's command without srun and "$@" (its two lines joined)
+recipe=$(grep -E '^srun ' -A1 experiments/slurm_evolve.sbatch | sed -E 's/^srun //; s/ *\\$//; s/"\$@"//' \
+         | tr -s ' \n' '  ')
 # shellcheck disable=SC2206
 one_cmd=($recipe "${extra[@]}" --out "$work/one")
 say "one process: ${one_cmd[*]}"
@@ -195,5 +202,6 @@ say "one process ended with status $one_rc after $one_s s"
 "$py" experiments/slurm_local_compare.py --slurm "$work/slurm" --one "$work/one" --job-log "$job_log" \
   --one-log "$work/one.log.txt" --result "$result" --job-id "$jobid" --job-rc "$job_rc" --one-rc "$one_rc" \
   --job-s "$job_s" --one-s "$one_s" --submit "${submit[*]}" --one-command "${one_cmd[*]}" \
-  --sinfo "$(sinfo -h -o '%P %a %D %T %c CPUs %N' | head -1)" --scontrol "$sacct_line" --slurm-version "$(sinfo -V)"
+  --sinfo "$(sinfo -h -o '%P %a %D %T %c CPUs %N' | head -1)" --scontrol "$sacct_line" --slurm-version "$(sinfo -V)" \
+  --jaxarm "$jaxarm_from" --command "$invocation"
 exit $?

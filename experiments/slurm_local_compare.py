@@ -1,8 +1,9 @@
 """Compare two `jaxarm evolve` output folders bit for bit and write experiments/slurm_local.sh's result file.
 
 Compared: history.json's per-generation history, top_k.json whole, and every checkpoint step's search state (every
-array of the orbax ``state`` item, by its bytes, dtype and shape) and its ``meta`` item (all but its timings). Exit status 0 when all are
-identical, 1 when something differs, 2 when a run failed or a folder is missing what it should hold.
+array of the orbax ``state`` item, by its bytes, dtype and shape) and its ``meta`` item (all but its timings).
+Exit status 0 when all are identical, 1 when something differs, 2 when a run failed or a folder is missing what it
+should hold.
 
     python experiments/slurm_local_compare.py --slurm RUN_A --one RUN_B [--result FILE] [--job-log LOG] ...
 """
@@ -105,7 +106,7 @@ def main(argv=None) -> int:
     ap.add_argument("--result", type=Path, default=None, help="write the result JSON here")
     ap.add_argument("--job-log", type=Path, default=None)
     ap.add_argument("--one-log", type=Path, default=None)
-    for name in ("job-id", "submit", "one-command", "sinfo", "scontrol", "slurm-version"):
+    for name in ("job-id", "submit", "one-command", "sinfo", "scontrol", "slurm-version", "jaxarm", "command"):
         ap.add_argument(f"--{name}", default="")
     for name in ("job-rc", "one-rc", "job-s", "one-s"):
         ap.add_argument(f"--{name}", type=int, default=None)
@@ -124,21 +125,36 @@ def main(argv=None) -> int:
         comparison, error = {}, f"{type(e).__name__}: {e}"
     failed = args.job_rc not in (0, None) or args.one_rc not in (0, None) or error is not None
     identical = bool(comparison) and all(v["identical"] for v in comparison.values()) and not failed
+    report = []
+    for name, v in comparison.items():
+        extra = ", ".join(f"{k} {v[k]}" for k in ("generations", "candidates", "arrays", "bytes") if k in v)
+        report.append(f"slurm_local: {name}: {'identical' if v['identical'] else 'DIFFERENT'}"
+                      + (f" ({extra})" if extra else "") + (f" differ: {v['differ']}" if v.get("differ") else ""))
+    if error:
+        report.append(f"slurm_local: cannot compare: {error}")
+    verdict = ("the SLURM job gave the same bits as one process" if identical else
+               "a run failed" if failed else "the SLURM job's results DIFFER from one process's")
+    report.append(f"slurm_local: {verdict}")
+    commit = _git("rev-parse", "HEAD")
+    job_log = lines(args.job_log)
     record = {
         "what": "the docs' SLURM recipe (experiments/slurm_evolve.sbatch, docs/scaling.md 'A SLURM cluster') "
                 "scaled to one machine and submitted with sbatch to a one-machine SLURM started by "
                 "experiments/slurm_local.sh, against the same command as one process",
-        "command": "bash experiments/slurm_local.sh" + (f" --result {args.result}" if args.result else ""),
+        "command": args.command or "bash experiments/slurm_local.sh",
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-        "commit": _git("rev-parse", "HEAD"),
+        "commit": commit,
+        "commit_short": commit[:7],
         "uncommitted_changes": bool(_git("status", "--porcelain", "--untracked-files=no")),
+        "jaxarm_imported_from": args.jaxarm,
         "machine": machine(),
         "slurm": {"version": args.slurm_version, "sinfo": args.sinfo, "submit": args.submit, "job_id": args.job_id,
                   "job_status": args.job_rc, "scontrol": args.scontrol, "wall_s": args.job_s,
-                  "log": lines(args.job_log)},
+                  "log": job_log, "log_text": "\n".join(job_log)},
         "one_process": {"command": args.one_command, "status": args.one_rc, "wall_s": args.one_s,
                         "log": lines(args.one_log)[-30:]},
         "comparison": comparison,
+        "comparison_text": "\n".join(report),
         "identical": identical,
     }
     if error:
@@ -146,15 +162,8 @@ def main(argv=None) -> int:
     if args.result:
         args.result.parent.mkdir(parents=True, exist_ok=True)
         args.result.write_text(json.dumps(record, indent=1) + "\n")
-    for name, v in comparison.items():
-        extra = ", ".join(f"{k} {v[k]}" for k in ("generations", "candidates", "arrays", "bytes") if k in v)
-        print(f"slurm_local: {name}: {'identical' if v['identical'] else 'DIFFERENT'}"
-              + (f" ({extra})" if extra else "") + (f" differ: {v['differ']}" if v.get("differ") else ""))
-    if error:
-        print(f"slurm_local: cannot compare: {error}")
-    verdict = ("the SLURM job gave the same bits as one process" if identical else
-               "a run failed" if failed else "the SLURM job's results DIFFER from one process's")
-    print(f"slurm_local: {verdict}" + (f" (written to {args.result})" if args.result else ""))
+    print("\n".join(report[:-1]))
+    print(report[-1] + (f" (written to {args.result})" if args.result else ""))
     return 0 if identical else 2 if failed else 1
 
 
