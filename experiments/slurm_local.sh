@@ -167,7 +167,8 @@ say "sinfo: $(sinfo -h -o '%P %a %D %T %c CPUs %N' | head -1)"
 
 # --- the recipe under sbatch, then the same command as one process -------------------------------------------------
 export PATH=$bin:$PATH
-jaxarm_from=$("$py" -c 'import os, jaxarm; print(os.path.dirname(jaxarm.__file__))' 2>/dev/null)
+# what the jaxarm command imports (from /, as its entry script does not see the working folder)
+jaxarm_from=$(cd / && "$py" -c 'import os, jaxarm; print(os.path.dirname(jaxarm.__file__))' 2>/dev/null)
 say "jaxarm: $bin/jaxarm, importing $jaxarm_from"
 # shellcheck disable=SC2206
 extra=($scaled)
