@@ -98,6 +98,37 @@ def test_user_pages_cite_nothing_outside_the_repository():
     """A newcomer's pages state the facts they rely on, cited to the paper or the authors' code, not to the project's
     extracted specification (outside the repository) or to issue numbers."""
     outside = re.compile(r"spec §|reference_values\.md|\bissue('s| \d+)", re.I)
-    for page in ("README.md", "docs/index.md", "docs/getting-started.md", "docs/reproducing.md", "docs/model.md"):
+    for page in USER_PAGES:
         hits = [m.group(0) for m in outside.finditer((ROOT / page).read_text())]
         assert not hits, f"{page}: {hits}"
+
+
+#: Pages that say what to run, what it prints, how long it takes and what it means; their history (what changed
+#: when, superseded numbers, search logs) is in the record: docs/changelog.md, docs/results.md, docs/searches.md.
+USER_PAGES = ("README.md", "docs/index.md", "docs/getting-started.md", "docs/reproducing.md", "docs/model.md",
+              "docs/robot.md", "docs/evolution.md")
+HASH = re.compile(r"(?<![\w/.-])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}(?![\w-])")
+DATE = re.compile(r"\b20\d\d-\d\d-\d\d\b")
+
+
+def _prose(text: str) -> str:
+    """A page's text less link targets, result placeholders and the numbers written out before result markers (a
+    result file's date is provenance, not narrative), and the authors' ModelDB snapshot (their code, not ours)."""
+    text = re.sub(r"\]\([^)]*\)", "]()", text)
+    text = re.sub(r"\S*<!--\s*result:.*?-->", "", text)
+    text = re.sub(r"\{\{[^{}]*\}\}", "", text)
+    return re.sub(r"snapshot [0-9a-f]{7}", "", text)
+
+
+@pytest.mark.parametrize("page", USER_PAGES)
+def test_user_pages_carry_no_commit_hashes_and_no_dates(page):
+    text = _prose((ROOT / page).read_text())
+    hits = [m.group(0) for pattern in (HASH, DATE) for m in pattern.finditer(text)]
+    assert not hits, f"{page}: {hits} (history goes to docs/changelog.md, docs/results.md or docs/searches.md)"
+
+
+def test_the_prose_filter_sees_a_hash_and_a_date():
+    assert HASH.search(_prose("fixed in 9ed3104 (every P cell)")) and DATE.search(_prose("rerun on 2026-12-03"))
+    assert not HASH.search(_prose("[x](searches.md#18-x-2026-12-04) ModelDB 183014, snapshot 1dd5002, 1e-3"))
+    assert not DATE.search(_prose("run on 2026-12-05<!-- result: reproduce_simple.json : date --> on"))
+
