@@ -5,12 +5,14 @@
 # docs' recipe (experiments/slurm_evolve.sbatch, docs/scaling.md "A SLURM cluster") scaled to this machine with
 # `sbatch`: 2 tasks of 1 CPU on this node, a tiny search. The job's two processes join through jax.distributed from
 # SLURM's environment. The same command then runs as one process, and the script compares the two runs' history,
-# top-k and last checkpoint bit for bit. The daemons are stopped on exit, whatever happens.
+# top-k and every checkpoint bit for bit. On exit, whatever happens (an error, INT or TERM), the job is cancelled and
+# the daemons are stopped.
 #
 #   bash experiments/slurm_local.sh [--result FILE]        # as root (or with passwordless sudo), from anywhere
 #
 # Environment: PYTHON (default .venv/bin/python, else python3: the jaxarm the job runs is the one beside it),
-# WORK (default runs/slurm-local: logs, both runs; emptied first), SLURM_LOCAL_ARGS (the scaled search's options).
+# WORK (default runs/slurm-local: logs and both runs, those of a previous run removed first), SLURM_LOCAL_ARGS (the
+# scaled search's options), SLURM_LOCAL_TIME (the job's --time, default 00:20:00).
 # Writes WORK/slurm_local.json (or --result FILE): command, date, machine, commit, the job's log, the comparison.
 #
 # Exit status: 0 the SLURM job gave the same bits as one process; 1 the bits differ; 2 the job or the one-process
@@ -24,10 +26,17 @@ result=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --result) result=$2; shift 2 ;;
-    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,/^set -uo/p' "$0" | sed '$d'; exit 0 ;;
     *) echo "slurm_local: unknown argument $1 (--result FILE)" >&2; exit 2 ;;
   esac
 done
+
+# --- root ----------------------------------------------------------------------------------------------------------
+cannot() { echo "slurm_local: cannot start SLURM: $*"; exit 77; }
+say() { echo "slurm_local: $*"; }
+if [ "$(id -u)" = 0 ]; then sudo=""; as_munge=(runuser -u munge --)
+elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then sudo="sudo -n"; as_munge=(sudo -n -u munge)
+else cannot "not root and no passwordless sudo (the daemons run as root)"; fi
 py=${PYTHON:-.venv/bin/python}
 [ -x "$py" ] || py=$(command -v python3)
 py=$(cd "$(dirname "$py")" && pwd)/$(basename "$py")
@@ -35,18 +44,13 @@ bin=$(dirname "$py")
 [ -x "$bin/jaxarm" ] || { echo "slurm_local: no jaxarm beside $py (PYTHON=... names the environment's python)"
                          exit 2; }
 work=${WORK:-runs/slurm-local}
-mkdir -p "$work" && work=$(cd "$work" && pwd)
+mkdir -p "$work" || { echo "slurm_local: cannot create $work (WORK=... names another folder)"; exit 2; }
+work=$(cd "$work" && pwd)
 [ -n "$result" ] || result=$work/slurm_local.json
 scaled=${SLURM_LOCAL_ARGS:---population 8 --seeds-per-candidate 2 --generations 2 --chunk 1 --train-s 0.5 --top-k 4}
 job_time=${SLURM_LOCAL_TIME:-00:20:00}
 
-cannot() { echo "slurm_local: cannot start SLURM: $*"; exit 77; }
-say() { echo "slurm_local: $*"; }
-
-# --- root, packages ----------------------------------------------------------------------------------------------
-if [ "$(id -u)" = 0 ]; then sudo=""; as_munge=(runuser -u munge --)
-elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then sudo="sudo -n"; as_munge=(sudo -n -u munge)
-else cannot "not root and no passwordless sudo (the daemons run as root)"; fi
+# --- packages ------------------------------------------------------------------------------------------------------
 if ! command -v slurmctld >/dev/null || ! command -v slurmd >/dev/null || ! command -v sbatch >/dev/null \
     || ! command -v munged >/dev/null; then
   command -v apt-get >/dev/null || cannot "slurmctld/slurmd/munged are not installed and there is no apt-get"
@@ -67,16 +71,21 @@ done
 [ -r /etc/munge/munge.key ] || $sudo test -r /etc/munge/munge.key || cannot "no munge key /etc/munge/munge.key"
 
 # --- the cluster's files -------------------------------------------------------------------------------------------
-rm -rf "$work/slurm" "$work/one" "$work"/slurm-*.log "$work"/*.log.txt
-state=$(mktemp -d /tmp/jaxarm-slurm.XXXXXX)
-chmod 755 "$state"
-mkdir -p "$state/munge" "$state/ctld" "$state/spool" "$work/daemons"
-$sudo chown munge:munge "$state/munge" 2>/dev/null || $sudo chown munge "$state/munge" || cannot "no munge user"
-chmod 755 "$work/daemons" 2>/dev/null
-pids=()
+rm -rf "$work/slurm" "$work/one" "$work"/slurm-*.log "$work"/*.log.txt "$work"/sbatch.*
+state=$(mktemp -d /tmp/jaxarm-slurm.XXXXXX) || cannot "mktemp -d failed"
+pids=()      # the daemons', the job's sbatch and the one-process run's: stopped on exit
 cleanup() {
   trap - EXIT INT TERM
-  [ -n "${jobid:-}" ] && SLURM_CONF=$state/slurm.conf scancel "$jobid" 2>/dev/null
+  [ -z "${jobid:-}" ] && [ -s "$work/sbatch.out" ] && jobid=$(cut -d';' -f1 "$work/sbatch.out")
+  if [ -n "${jobid:-}" ]; then     # the job's processes end before the daemons that watch them
+    SLURM_CONF=$state/slurm.conf scancel "$jobid" 2>/dev/null
+    for _ in $(seq 60); do
+      st=$(SLURM_CONF=$state/slurm.conf squeue -h -j "$jobid" -o %T 2>/dev/null)
+      case "$st" in *RUNNING*|*COMPLETING*|*PENDING*|*CONFIGURING*|*SUSPENDED*) sleep 0.5 ;; *) break ;; esac
+    done
+    # what SLURM did not end (its daemons gone first): the job's processes, found by its own output folder
+    for p in $(pgrep -f -- "--out $work/slurm" 2>/dev/null); do $sudo kill -9 "$p" 2>/dev/null; done
+  fi
   for f in "$state/slurmd.pid" "$state/slurmctld.pid" "$state/munge/munged.pid"; do
     [ -s "$f" ] && pids+=("$(cat "$f")")
   done
@@ -91,6 +100,10 @@ cleanup() {
 }
 trap cleanup EXIT
 trap 'exit 130' INT TERM
+chmod 755 "$state"
+mkdir -p "$state/munge" "$state/ctld" "$state/spool" "$work/daemons"
+$sudo chown munge:munge "$state/munge" 2>/dev/null || $sudo chown munge "$state/munge" || cannot "no munge user"
+chmod 755 "$work/daemons" 2>/dev/null
 
 free_port() { "$py" -c 'import socket; s = socket.socket(); s.bind(("", 0)); print(s.getsockname()[1])'; }
 host=$(hostname -s)
@@ -132,7 +145,7 @@ ReturnToService=2
 SlurmctldTimeout=60
 SlurmdTimeout=60
 InactiveLimit=0
-KillWait=10
+KillWait=5
 MinJobAge=600
 $node
 PartitionName=local Nodes=$host Default=YES MaxTime=INFINITE State=UP
@@ -176,10 +189,16 @@ submit=(sbatch --parsable --wait --nodes=1 --ntasks-per-node=2 --cpus-per-task=1
         --output="$work/slurm-%j.log" experiments/slurm_evolve.sbatch "${extra[@]}" --out "$work/slurm")
 say "${submit[*]}"
 started=$(date +%s)
-jobid=$("${submit[@]}" 2>"$work/sbatch.err")
+"${submit[@]}" >"$work/sbatch.out" 2>"$work/sbatch.err" &     # waited for, so that a signal stops it at once
+pids+=($!)
+wait $!
 job_rc=$?
-jobid=${jobid%%;*}
+jobid=$(cut -d';' -f1 "$work/sbatch.out" 2>/dev/null)
 job_s=$(( $(date +%s) - started ))
+if [ -z "$jobid" ]; then
+  say "sbatch did not submit the job (status $job_rc): $(head -3 "$work/sbatch.err")"
+  exit 2
+fi
 job_log=$work/slurm-$jobid.log
 say "job $jobid ended with status $job_rc after $job_s s; its log ($job_log):"
 sed 's/^/    /' "$job_log" 2>/dev/null
@@ -187,6 +206,7 @@ sed 's/^/    /' "$job_log" 2>/dev/null
 sacct_line=$(scontrol show job "$jobid" 2>/dev/null | grep -oE 'JobState=[A-Z_]+|ExitCode=[0-9:]+|NumTasks=[0-9]+' \
              | tr '\n' ' ')
 say "scontrol: ${sacct_line:-(job record gone)}"
+[ "$job_rc" = 0 ] || { say "the job failed (its log above); not comparing"; exit 2; }
 # the recipe's command without srun and "$@" (its two lines joined)
 recipe=$(grep -E '^srun ' -A1 experiments/slurm_evolve.sbatch | sed -E 's/^srun //; s/ *\\$//; s/"\$@"//' \
          | tr -s ' \n' '  ')
@@ -194,7 +214,9 @@ recipe=$(grep -E '^srun ' -A1 experiments/slurm_evolve.sbatch | sed -E 's/^srun 
 one_cmd=($recipe "${extra[@]}" --out "$work/one")
 say "one process: ${one_cmd[*]}"
 started=$(date +%s)
-(unset SLURM_CONF; "${one_cmd[@]}") >"$work/one.log.txt" 2>&1
+env -u SLURM_CONF "${one_cmd[@]}" >"$work/one.log.txt" 2>&1 &
+pids+=($!)
+wait $!
 one_rc=$?
 one_s=$(( $(date +%s) - started ))
 say "one process ended with status $one_rc after $one_s s"

@@ -95,9 +95,14 @@ def test_the_recipe_under_a_real_slurm_gives_the_bits_of_one_process(tmp_path):
     result = tmp_path / "slurm_local.json"
     env = dict(os.environ, PYTHON=sys.executable, WORK=str(tmp_path / "work"))
     env = {k: v for k, v in env.items() if not k.startswith("SLURM_")}
-    proc = subprocess.run(["bash", str(SCRIPT), "--result", str(result)], capture_output=True, text=True, env=env,
-                          timeout=1800)
-    out = proc.stdout + proc.stderr
+    proc = subprocess.Popen(["bash", str(SCRIPT), "--result", str(result)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env)
+    try:
+        out = proc.communicate(timeout=1800)[0]
+    except subprocess.TimeoutExpired:
+        proc.terminate()            # the script cancels the job and stops its daemons on TERM
+        out = proc.communicate(timeout=120)[0]
+        pytest.fail(f"experiments/slurm_local.sh ran over 30 min:\n{out[-6000:]}")
     if proc.returncode == CANNOT_START:
         reason = next((ln for ln in out.splitlines() if "cannot start SLURM" in ln), out.strip()[-300:])
         pytest.skip(reason)
