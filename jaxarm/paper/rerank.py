@@ -171,6 +171,10 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
                    "label": f"{arm}/{target}: {len(sets)} sets x {seeds} seeds"})
     log(f"{len(sets)} sets x {seeds} seeds ({first_seed}..{first_seed + seeds - 1}) = {n} networks, {n_epochs} x "
         f"{epoch_s:g} s on the {arm} arm, {target} target, one batch over {batch.mesh.size} device(s) -> {out}")
+    import jax
+
+    log(parallel.padding_note(n, f"the batch's {n} networks", batch.mesh.size, batch.at_once, jax.process_count(),
+                              ("--seeds", lambda v: len(sets) * v, seeds)))
     t0 = time.perf_counter()
     carry, _, wall, epochs_run, compile_s = batch.train(progress=progress, stop_after=stop_after)
     if int(parallel.host(carry.epoch)[0]) < n_epochs:
