@@ -2,7 +2,7 @@
 
     python experiments/arm_convergence.py [--seeds 7 ... 26] [--muscle-substeps 10] [--newton-iterations 2]
         [--integrators linearly_implicit backward_euler] [--inputs step ramp random held maximal]
-        [--backends fast mjx] [--json-out FILE]
+        [--backends fast mjx] [--sweep] [--json-out FILE]
 
 Inputs (1 s each, 1 ms arm steps, from the start posture; excitations of the 4 groups):
 
@@ -26,7 +26,8 @@ For each integrator under test (float32, the arm's own precision: ``linearly_imp
 of each path's largest joint-angle error (deg) against both references, the largest change of PECM1's tendon force
 (N) from one 1 ms step to the next (chatter shows as thousands of newtons; the references' too), and on the random
 inputs how far a 1e-4 rad move of the start shoulder angle moves the path (``start_perturbation``). With both
-backends, ``fast_vs_mjx``: the two backends' paths on the random inputs, per integrator.
+backends, ``fast_vs_mjx``: the two backends' paths on the random inputs, per integrator. ``--sweep`` adds
+:func:`pecm1_slack_sweep` (the muscles alone, PECM1 taking up slack fast).
 """
 from __future__ import annotations
 
@@ -169,6 +170,53 @@ def convergence(backends=("fast", "mjx"), seeds=range(7, 27), muscle_substeps: i
     return out
 
 
+def pecm1_slack_sweep(newton_iterations=(2, 8), muscle_substeps: int = 10, seconds: float = 0.5) -> dict:
+    """The muscles alone (no skeleton) at excitation 0.5, each path length swept through +-10 % of its optimal fibre
+    length at 4 Hz around its rest length (PECM1's tendon goes slack and taut every cycle, its path moving at up to
+    0.36 m/s): the largest tendon-force error (of F_max) of each integrator at 1 ms against 0.01 ms linearly-implicit
+    steps (float32), and the largest step-to-step force change (N), for PECM1 and the worst muscle."""
+    from jaxarm.arm import muscle as mus
+
+    arm = MusculoskeletalArm("fast")
+    p, names = arm.params, arm.muscle_names
+    m = names.index("PECM1")
+    rest = p.optimal_fiber_length_m * jnp.cos(p.pennation_rad) + p.tendon_slack_length_m
+
+    def lmt_at(t):
+        return rest + 0.1 * p.optimal_fiber_length_m * jnp.sin(2 * jnp.pi * 4.0 * t)
+
+    def run(dt_s, integrator, n_inner=1, iterations=2):
+        u = jnp.full_like(rest, 0.5)
+        s = mus.MuscleState(jnp.zeros_like(rest), mus.equilibrium_fiber_length(p, jnp.zeros_like(rest), lmt_at(0.0)))
+
+        def body(s, i):
+            t0, t1 = i * dt_s, (i + 1) * dt_s
+            if integrator == "backward_euler":
+                s = mus.step_backward_euler(p, s, u, lmt_at(t0), lmt_at(t1), dt_s, iterations)
+            else:
+                s = jax.lax.fori_loop(0, n_inner, lambda k, x: mus.step(
+                    p, x, u, lmt_at(t0 + (k + 1.0) * dt_s / n_inner), dt_s / n_inner), s)
+            return s, mus.tendon_force(p, s.fiber_length_m, lmt_at(t1))
+
+        n = int(round(seconds / dt_s))
+        return np.asarray(jax.jit(lambda s0: jax.lax.scan(body, s0, jnp.arange(n, dtype=jnp.float32))[1])(s))
+
+    ref = run(1e-3, "linearly_implicit", 100)
+    f_max = np.asarray(p.max_force_n)
+    runs = {f"backward_euler, {k} iterations": run(1e-3, "backward_euler", iterations=k) for k in newton_iterations}
+    runs[f"linearly_implicit, {muscle_substeps} sub-steps"] = run(1e-3, "linearly_implicit", muscle_substeps)
+    runs["linearly_implicit, 1 sub-step"] = run(1e-3, "linearly_implicit", 1)
+    out = {"reference": "linearly implicit, 0.01 ms steps (float32)",
+           "reference_pecm1_max_force_change_n": max_force_change_n(ref[None, :, m])}
+    for name, f in runs.items():
+        err = np.abs(f - ref).max(axis=0) / f_max
+        out[name] = {"pecm1_max_force_error_of_f_max": round(float(err[m]), 4),
+                     "worst_muscle": names[int(err.argmax())],
+                     "worst_max_force_error_of_f_max": round(float(err.max()), 4),
+                     "pecm1_max_force_change_n": max_force_change_n(f[None, :, m])}
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, nargs="+", default=list(range(7, 27)))
@@ -178,6 +226,8 @@ def main(argv=None) -> int:
     ap.add_argument("--inputs", nargs="+", choices=INPUTS, default=list(INPUTS))
     ap.add_argument("--backends", nargs="+", choices=("fast", "mjx"), default=["fast", "mjx"])
     ap.add_argument("--json-out", help="also write the JSON to this file")
+    ap.add_argument("--sweep", action="store_true", help="also the muscles alone in a fast slack-taut sweep "
+                                                         "(pecm1_slack_sweep)")
     ap.add_argument("--references-out", help=argparse.SUPPRESS)  # internal: the float64 subprocess
     args = ap.parse_args(argv)
     if args.references_out:
@@ -185,6 +235,8 @@ def main(argv=None) -> int:
         return 0
     result = convergence(args.backends, args.seeds, args.muscle_substeps, args.newton_iterations, args.integrators,
                          args.inputs)
+    if args.sweep:
+        result["pecm1_slack_sweep"] = pecm1_slack_sweep((args.newton_iterations, 8), args.muscle_substeps)
     text = json.dumps(result, indent=1)
     print(text)
     if args.json_out:
