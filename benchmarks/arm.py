@@ -1,7 +1,8 @@
 """Arm throughput: arm-steps per second for both musculoskeletal backends and muscle integrators at 1, 60, 300 arms.
 
     python benchmarks/arm.py --json [--batches 1 60 300] [--steps 1000] [--repeats 5]
-        [--integrators linearly_implicit backward_euler] [--backends fast mjx] [--json-out FILE]
+        [--integrators linearly_implicit backward_euler] [--newton-iterations 2] [--backends fast mjx]
+        [--json-out FILE]
 
 One arm-step = 1 ms of one arm. Each measurement jits ``vmap`` over arms of a ``lax.scan`` over ``--steps`` steps
 (``--mjx-steps`` for MJX) with random excitations (seed 0). Every (integrator, backend, batch) is compiled first;
@@ -85,6 +86,8 @@ def main(argv=None) -> int:
     default = MusculoskeletalArmConfig().muscle_integrator
     ap.add_argument("--integrators", nargs="+", default=list(MUSCLE_INTEGRATORS), choices=MUSCLE_INTEGRATORS,
                     help=f"muscle integrators to measure (the default one, {default!r}, is always measured)")
+    ap.add_argument("--newton-iterations", type=int, default=MusculoskeletalArmConfig().muscle_newton_iterations,
+                    help="MusculoskeletalArmConfig.muscle_newton_iterations of the backward_euler integrator")
     ap.add_argument("--json-out", help="also write the JSON to this file")
     args = ap.parse_args(argv)
     from jaxarm import make_arm
@@ -97,7 +100,7 @@ def main(argv=None) -> int:
         "command": "python benchmarks/arm.py " + " ".join(sys.argv[1:] if argv is None else argv)}}
     runs = {}
     for integrator in integrators:
-        config = MusculoskeletalArmConfig(muscle_integrator=integrator)
+        config = MusculoskeletalArmConfig(muscle_integrator=integrator, muscle_newton_iterations=args.newton_iterations)
         for backend in args.backends:
             with contextlib.redirect_stdout(sys.stderr):  # importing MJX prints optional-backend notices on stdout
                 arm = make_arm("musculoskeletal", backend=backend, config=config)
