@@ -10,10 +10,10 @@ then ``--repeats`` rounds time each of them once, in turn, so that load from oth
 of them alike; each rate is the median over the rounds. Compile time is the first call minus the median run.
 
 Reported as JSON: ``{"fast": {"1": steps_per_s, ...}, "mjx": {...}}`` for the default integrator (wall clock, as
-before), and per integrator ``integrators[name][backend][batch]`` with ``wall`` (arm-steps per wall-clock second) and
-``cpu`` (per second of this process's CPU time, steadier on a shared machine), ``speedup`` (each integrator against
-the default, and the fast path against MJX with the same integrator and with the default one, from the wall
-medians), ``compile_s`` and every round's wall and CPU times (``rounds``).
+before), and per integrator ``integrators[name][backend][batch]`` with ``arm_steps_per_wall_s`` and
+``arm_steps_per_cpu_s`` (per second of this process's CPU time, steadier on a shared machine), ``speedup`` (each
+integrator against the default, and the fast path against MJX with the same integrator and with the default one,
+from the wall-clock medians), ``compile_s`` and every round's times (``rounds``, s).
 """
 from __future__ import annotations
 
@@ -115,29 +115,32 @@ def main(argv=None) -> int:
     for (integrator, backend, b), (_, _, first, n) in runs.items():
         wall = statistics.median(w for w, _ in rounds[(integrator, backend, b)])
         cpu = statistics.median(c for _, c in rounds[(integrator, backend, b)])
-        rates = {"wall": round(n / wall), "cpu": round(n / cpu)}
+        rates = {"arm_steps_per_wall_s": round(n / wall), "arm_steps_per_cpu_s": round(n / cpu)}
         per.setdefault(integrator, {}).setdefault(backend, {})[str(b)] = rates
         result["compile_s"][f"{integrator}_{backend}_{b}"] = round(max(first - wall, 0.0), 2)
         if not args.json:
             print(f"{integrator:17s} {backend:4s} batch {b:4d}: {n / wall:12,.0f} arm-steps/s wall, {n / cpu:12,.0f} "
                   f"per CPU second (compile {first - wall:.1f} s)", file=sys.stderr)
     for backend in args.backends:  # the default integrator's wall rates, as this script always reported them
-        result[backend] = {b: v["wall"] for b, v in per[default][backend].items()}
+        result[backend] = {b: v["arm_steps_per_wall_s"] for b, v in per[default][backend].items()}
     result["integrators"] = per
     speedup = {}
+    wall = {(i, bk, b): v["arm_steps_per_wall_s"]
+            for i, r in per.items() for bk, rb in r.items() for b, v in rb.items()}
     for integrator in integrators:
         for b in map(str, args.batches):
+            ratios = []
             if integrator != default and "fast" in args.backends:
-                speedup.setdefault(f"fast {integrator} / fast {default}", {})[b] = round(
-                    per[integrator]["fast"][b]["wall"] / per[default]["fast"][b]["wall"], 2)
+                ratios.append((f"fast {integrator} / fast {default}", ("fast", integrator), ("fast", default)))
             if {"fast", "mjx"} <= set(args.backends):
-                speedup.setdefault(f"fast {integrator} / mjx {integrator}", {})[b] = round(
-                    per[integrator]["fast"][b]["wall"] / per[integrator]["mjx"][b]["wall"], 2)
+                ratios.append((f"fast {integrator} / mjx {integrator}", ("fast", integrator), ("mjx", integrator)))
                 if integrator != default:
-                    speedup.setdefault(f"fast {integrator} / mjx {default}", {})[b] = round(
-                        per[integrator]["fast"][b]["wall"] / per[default]["mjx"][b]["wall"], 2)
+                    ratios.append((f"fast {integrator} / mjx {default}", ("fast", integrator), ("mjx", default)))
+            for name, (bk1, i1), (bk2, i2) in ratios:
+                speedup.setdefault(name, {})[b] = round(wall[(i1, bk1, b)] / wall[(i2, bk2, b)], 2)
     result["speedup"] = speedup
-    result["rounds"] = {f"{i} {bk} {b}": [[round(w, 4), round(c, 4)] for w, c in r] for (i, bk, b), r in rounds.items()}
+    result["rounds"] = {f"{i} {bk} {b}": {"wall_s": [round(w, 4) for w, _ in r], "cpu_s": [round(c, 4) for _, c in r]}
+                        for (i, bk, b), r in rounds.items()}
     text = json.dumps(result, indent=None if args.json else 1)
     print(text)
     if args.json_out:
