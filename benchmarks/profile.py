@@ -78,7 +78,8 @@ def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
     carry = jax.jit(jax.vmap(fns.init))(keys)
 
     def start(tr):
-        return loop.init(tr.noise_key, tr.wgain, tr.babble, tr.babble.rates_hz)
+        run, em_rates_hz = loop.rule.begin_epoch(tr.rule, tr.wgain, mp)
+        return loop.init(tr.noise_key, tr.wgain, run, em_rates_hz)
 
     state = jax.jit(jax.vmap(start))(carry.trained)
     run_keys = jax.random.split(jax.random.PRNGKey(1), n)

@@ -33,13 +33,14 @@ CHANGES = ("none", "paper-babbling", "reseed-noise", "angle-critic")
 def loop_config(arm: str, target: str, change: str, epochs: int | None = None):
     """The closed-loop configuration of ``change`` (see the module docstring)."""
     from jaxarm.learning.babbling import BabblingConfig
+    from jaxarm.learning.rstdp import RSTDPConfig
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
 
     if change not in CHANGES:
         raise ValueError(f"change = {change!r}: must be one of {', '.join(CHANGES)}")
     task = TaskConfig(target=target) if epochs is None else TaskConfig(target=target, epochs=epochs)
-    extra = {"paper-babbling": {"babbling": BabblingConfig(variant="paper")},
+    extra = {"paper-babbling": {"rule": RSTDPConfig(babbling=BabblingConfig(variant="paper"))},
              "reseed-noise": {"reseed_noise_each_epoch": True},
              "angle-critic": {"critic_error": "angle"}}.get(change, {})
     return LoopConfig(arm=arm, task=task, **extra)

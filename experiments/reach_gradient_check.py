@@ -89,7 +89,7 @@ def main(argv=None) -> int:
     reach = round(args.reach_s / task.update_interval_s)
 
     def loss(g, k):
-        state = fwd.init(k, trained.wgain.at[:n_train].set(g), trained.babble, bab.em_noise_rates_in_test(mp))
+        state = fwd.init(k, trained.wgain.at[:n_train].set(g), None, bab.em_noise_rates_in_test(mp))
         state, rec = fwd.run(trained.wiring, state, jax.random.key(0), mp, reach, learn=False)
         return jnp.mean(jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1))
 

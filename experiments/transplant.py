@@ -36,7 +36,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.config.network import NetworkConfig
-from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
 from jaxarm.network.wiring import wiring_from_edges
@@ -98,7 +97,7 @@ def main(argv=None) -> int:
     for path, (wiring, wgain) in zip(args.networks_npz, nets):
         k_noise, k_babble = jax.vmap(lambda k: jax.random.split(k, 2))(keys).transpose(1, 0, 2)
         trained = Trained(wiring=_stack(wiring, n_rep), wgain=_stack(wgain, n_rep),
-                          babble=_stack(bab.init_babbling(cfg.babbling), n_rep), noise_key=k_noise)
+                          rule=_stack(fns.loop.rule.init(None), n_rep), noise_key=k_noise)
         if args.mode == "train":
             carry = EpochCarry(trained=trained, key=k_babble, epoch=jnp.zeros((n_rep,), jnp.int32))
             for _ in range(args.epochs):

@@ -50,7 +50,6 @@ def network_trajectory(preset: str, arm: str, target: str, seed: int, duration_s
     import jax
 
     from jaxarm.paper import presets
-    from jaxarm.learning import babbling as bab
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
     from jaxarm.train import make_train
@@ -67,8 +66,8 @@ def network_trajectory(preset: str, arm: str, target: str, seed: int, duration_s
     n = int(round(duration_s / config.task.update_interval_s))
     carry = fns.init(jax.random.PRNGKey(seed))
     tr = carry.trained
-    babble = bab.start_epoch(tr.babble)
-    state = loop.init(tr.noise_key, tr.wgain, babble, babble.rates_hz)
+    rule_run, em_rates_hz = loop.rule.begin_epoch(tr.rule, tr.wgain, mp)
+    state = loop.init(tr.noise_key, tr.wgain, rule_run, em_rates_hz)
     q0 = loop.arm.observe(state.arm).q
     run = jax.jit(loop.run, static_argnames=("n_intervals", "learn"))
     _, rec = run(tr.wiring, state, jax.random.fold_in(carry.key, 0), mp, n_intervals=n, learn=True)

@@ -72,6 +72,29 @@ def check_manifest(folder: Path) -> None:
             raise ValueError(f"{name} changed since it was written")
 
 
+#: NamedTuple fields renamed since checkpoints were first written, new name -> old name: a step written before reads
+#: into the new structure (``jaxarm.train.Trained.babble`` became ``.rule`` with the learning-rule interface).
+RENAMED_FIELDS = {"rule": "babble"}
+
+
+def _renamed(x) -> bool:
+    return isinstance(x, tuple) and any(f in RENAMED_FIELDS for f in getattr(x, "_fields", ()))
+
+
+def _old_names(tree):
+    """``tree`` with every NamedTuple that has a renamed field as a dict under the old names (orbax matches a
+    NamedTuple's checkpoint by field names, so a dict of them reads it)."""
+    return jax.tree.map(lambda x: {RENAMED_FIELDS.get(f, f): _old_names(v) for f, v in zip(x._fields, x)}
+                        if _renamed(x) else x, tree, is_leaf=_renamed)
+
+
+def _new_names(restored, like):
+    """The inverse of :func:`_old_names`: ``restored`` (read through it) in ``like``'s structure."""
+    return jax.tree.map(lambda x, r: type(x)(*(_new_names(r[RENAMED_FIELDS.get(f, f)], v)
+                                               for f, v in zip(x._fields, x))) if _renamed(x) else r,
+                        like, restored, is_leaf=_renamed)
+
+
 class CheckpointWriteError(FolderError):
     """A checkpoint could not be written (:meth:`Checkpointer.save`); its message is one line (the commands print
     it as ``jaxarm COMMAND: ...`` and exit with status 2)."""
@@ -244,10 +267,23 @@ class Checkpointer:
             # functions already compiled for the state it replaces.
             return x if like.sharding is not None else jnp.asarray(np.asarray(x))
 
+        def read_into(s, target):
+            return self._manager.restore(s, args=ocp.args.Composite(state=ocp.args.StandardRestore(target),
+                                                                    meta=ocp.args.JsonRestore()))
+
         def read(s):
-            restored = self._manager.restore(s, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract),
-                                                                        meta=ocp.args.JsonRestore()))
-            return jax.tree.map(placed, restored.state, abstract), restored.meta
+            try:
+                restored = read_into(s, abstract)
+                state = restored.state
+            except Exception as error:  # noqa: BLE001 - a step written before a field was renamed, or damaged
+                if not any(map(_renamed, jax.tree.leaves(abstract, is_leaf=_renamed))):
+                    raise
+                try:
+                    restored = read_into(s, _old_names(abstract))
+                except Exception:  # noqa: BLE001 - not the old structure either: report the first failure
+                    raise error from None
+                state = _new_names(restored.state, abstract)
+            return jax.tree.map(placed, state, abstract), restored.meta
 
         return self._newest_readable(read, step)[1]
 

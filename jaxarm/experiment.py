@@ -32,9 +32,9 @@ import numpy as np
 
 from jaxarm import parallel, runfolder
 from jaxarm.analysis.reach import reach_metrics
-from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
+from jaxarm.learning.registry import DEFAULT, RULES, rule_from_meta
 from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig
 from jaxarm.run import Run, SetsRun, add_network_arguments, network_config
@@ -298,10 +298,9 @@ def _configs(args) -> list[tuple[str, LoopConfig]]:
     for target in args.target:
         task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
                           test_duration_s=args.test_s, test_em_noise_events=args.test_em_noise_events)
-        cfg = LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task)
-        if getattr(args, "learning", "rstdp") == "gradient":
-            cfg = dataclasses.replace(cfg, gradient=GradientConfig(learning_rate=args.gradient_lr,
-                                                                   reach_s=args.reach_s, params=args.gradient_params))
+        learning = getattr(args, "learning", DEFAULT)
+        cfg = LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task,
+                         learning=learning, rule=RULES[learning].config_from_arguments(args))
         out.append((target, cfg))
     return out
 
@@ -347,17 +346,10 @@ def train_main(argv: list[str] | None = None) -> int:
                     help="do not clip the motor excitations to [0, 1] (the hoc code does not; the default clips, as "
                          "the paper's thresholded readout and every published preset; NetworkConfig.readout_clip)")
     g = ap.add_argument_group("learning")
-    g.add_argument("--learning", choices=("rstdp", "gradient"), default="rstdp",
-                   help="rstdp (default): reward-modulated STDP with babbling, the paper's; gradient: Adam on the mean "
-                        "hand-target distance of 1 s reaches, through surrogate spikes and the arm, with the same "
-                        "network-seconds (docs/gradients.md)")
-    default = GradientConfig()
-    g.add_argument("--gradient-lr", type=float, default=default.learning_rate, metavar="LR",
-                   help=f"gradient learning: Adam's step size, per unit gain (default {default.learning_rate})")
-    g.add_argument("--reach-s", type=float, default=default.reach_s, metavar="S",
-                   help=f"gradient learning: length of one training reach (one step), s (default {default.reach_s:g})")
-    g.add_argument("--gradient-params", choices=("plastic", "all"), default=default.params,
-                   help="gradient learning: the gains trained: plastic (those R-STDP trains, default) or all")
+    g.add_argument("--learning", choices=tuple(RULES), default=DEFAULT,
+                   help="; ".join(f"{name}: {rule.summary}" for name, rule in RULES.items()))
+    for rule in RULES.values():
+        rule.add_arguments(g)
     ap.add_argument("--task", choices=("reaching", "centre-out-8"), default="reaching",
                     help="reaching (default): one --target per network, the paper's task; centre-out-8: the "
                          "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
@@ -558,9 +550,9 @@ def test_main(argv: list[str] | None = None) -> int:
     # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
     network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
                              | ({"crossing": args.crossing} if args.crossing else {}))
-    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task)
-    if "learning" in meta:   # trained by gradient: tested as R-STDP's; its checkpoint holds Adam's state too
-        cfg = dataclasses.replace(cfg, gradient=GradientConfig(**meta["learning"]))
+    learning, rule = rule_from_meta(meta)   # the rule's carry is restored with the gains (gradient: Adam's state)
+    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task, learning=learning,
+                     rule=rule)
     out = args.out or args.src / "test"
     try:
         if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)

@@ -1,4 +1,4 @@
-"""The closed loop of spec §3: network ↔ arm every 10 ms, with the critic, R-STDP and babbling in training.
+"""The closed loop of spec §3: network ↔ arm every 10 ms, with the learning rule in training.
 
 One interface period (``interval``) at time t (ms since the start of the run), in the original's order:
 
@@ -7,10 +7,9 @@ One interface period (``interval``) at time t (ms since the start of the run), i
    spikes in (t − 130, t − 60] ms ÷ v_em_max;
 3. the arm advances 10 ms under those excitations (SI units: m, s, rad);
 4. the hand–target distance (m) is computed; the 4 proprioceptive lengths (m) update the P code;
-5. training only: if t − last critic update > rl_dt_ms, the critic compares the last two stored distances
-   (10 ms apart, both before this step) and rewards (≥ 1 mm closer) or punishes (≥ 1 mm farther) every synapse
-   with a live tag; motor babbling picks the EM noise rates at the same moments; every syn_scaling_dt_ms global
-   synaptic scaling runs;
+5. training only: the learning rule's ``update`` (:mod:`jaxarm.learning.rule`; R-STDP's critic, dopamine update,
+   synaptic scaling and babbling by default, :mod:`jaxarm.learning.rstdp`) sees the time, the stored distances
+   and the new one, and may change the network's gains, tags and noise;
 6. the distance is appended to the history.
 
 Everything is a pure function of (state, key, metaparameters) so it can be ``vmap``-ed over networks and over
@@ -27,15 +26,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.batching import when_any
 from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.network import NetworkConfig
 from jaxarm.config.validate import ConfigError, check_choice
-from jaxarm.learning import babbling as bab
-from jaxarm.learning import critic as crit
-from jaxarm.learning import stdp
 from jaxarm.learning.metaparams import BOUNDS, MetaParams
-from jaxarm.network import noise as noise_mod
+from jaxarm.learning.registry import DEFAULT, RULES
+from jaxarm.learning.rule import Moment
 from jaxarm.network import readout as ro
 from jaxarm.network.network import Network, NetworkParams
 from jaxarm.network.populations import Populations
@@ -53,14 +49,17 @@ class LoopConfig:
     Attributes:
         arm: "simple" (the authors' kinematic arm, their default) or "musculoskeletal".
         backend: geometry backend of the musculoskeletal arm, "fast" or "mjx".
-        network, task, babbling, eligibility: the sub-configurations.
+        network, task: the sub-configurations.
         reseed_noise_each_epoch: False (the original) restarts the background-noise streams identically at every
             epoch; True draws fresh streams per epoch.
-        plasticity: False freezes the weights in training (babbling still runs): a control condition.
-        gradient: None (default): training is R-STDP with babbling, the paper's; a
-            :class:`~jaxarm.config.gradient.GradientConfig`: the gains are trained by gradient descent through the
-            loop instead (:mod:`jaxarm.learning.gradient`, which trains on its differentiable version of this
-            configuration and tests on this one).
+        learning: the learning rule, a name of :data:`jaxarm.learning.registry.RULES`: "rstdp" (default: R-STDP
+            with babbling, the paper's), "gradient" (gradient descent through the loop, which trains on its
+            differentiable version of this configuration and tests on this one) or "weight-perturbation".
+        rule: that rule's static configuration (its ``Config``, e.g. :class:`~jaxarm.learning.rstdp.RSTDPConfig`
+            with R-STDP's babbling, eligibility and plasticity switch); None: its defaults (:attr:`rule_config`;
+            the defaults given explicitly are stored as None).
+        gradient: shorthand for ``learning="gradient", rule=gradient`` (a
+            :class:`~jaxarm.config.gradient.GradientConfig`); stored that way, so it reads None afterwards.
         smooth_arm: the musculoskeletal arm's C-infinity formulation (``make_arm(..., smooth=True)``), for
             gradients through the loop (``docs/gradients.md``); the simple arm is smooth already.
         critic_error: what the critic compares 10 ms apart: "xy" (the original's training setting, XYERR: the
@@ -74,21 +73,34 @@ class LoopConfig:
     backend: str = "fast"
     network: NetworkConfig = field(default_factory=NetworkConfig)
     task: TaskConfig = field(default_factory=TaskConfig)
-    babbling: bab.BabblingConfig = field(default_factory=bab.BabblingConfig)
-    eligibility: stdp.EligibilityConfig = field(default_factory=stdp.EligibilityConfig)
     reseed_noise_each_epoch: bool = False
-    plasticity: bool = True
     critic_error: str = "xy"
     smooth_arm: bool = False
+    learning: str = DEFAULT
+    rule: Any = None
     gradient: GradientConfig | None = None
 
     def __post_init__(self):
         check_choice(self, "arm", ARMS)
         check_choice(self, "critic_error", ("xy", "angle"))
         check_choice(self, "backend", ("fast", "mjx"))
-        if self.gradient is not None and not isinstance(self.gradient, GradientConfig):
-            raise ConfigError(f"LoopConfig.gradient = {self.gradient!r}: must be None or a GradientConfig")
-        for name in ("reseed_noise_each_epoch", "plasticity", "smooth_arm"):
+        if self.gradient is not None:
+            if not isinstance(self.gradient, GradientConfig):
+                raise ConfigError(f"LoopConfig.gradient = {self.gradient!r}: must be None or a GradientConfig")
+            if self.learning not in (DEFAULT, "gradient") or self.rule is not None:
+                raise ConfigError(f"LoopConfig.gradient = {self.gradient!r} with learning = {self.learning!r}, "
+                                  f"rule = {self.rule!r}: give gradient alone, or learning and rule")
+            object.__setattr__(self, "learning", "gradient")
+            object.__setattr__(self, "rule", self.gradient)
+            object.__setattr__(self, "gradient", None)
+        check_choice(self, "learning", RULES)
+        kind = RULES[self.learning].Config
+        if self.rule is not None and not isinstance(self.rule, kind):
+            raise ConfigError(f"LoopConfig.rule = {self.rule!r}: must be None or a {kind.__name__} (learning = "
+                              f"{self.learning!r})")
+        if self.rule == kind():   # one spelling of the defaults, so equal configurations compare and hash equal
+            object.__setattr__(self, "rule", None)
+        for name in ("reseed_noise_each_epoch", "smooth_arm"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"LoopConfig.{name} = {getattr(self, name)!r}: must be True or False")
         if abs(self.network.interface_ms - 1000.0 * self.task.update_interval_s) > 1e-9:
@@ -108,16 +120,19 @@ class LoopConfig:
                               f"plus the {ro.LAG_MS:g} ms lag): at least "
                               f"{math.ceil(window_hi / self.network.interface_ms) + 1} bins")
 
+    @property
+    def rule_config(self):
+        """The learning rule's static configuration: :attr:`rule`, or the rule's defaults."""
+        return RULES[self.learning].Config() if self.rule is None else self.rule
+
 
 class LoopState(NamedTuple):
     net: Any                    # network State (ms/mV inside)
     arm: Any                    # arm state (SI)
     readout: ro.ReadoutState
-    babble: bab.BabblingState
+    rule: Any                   # the learning rule's state within the run (None in a test)
     err_hist_m: jnp.ndarray     # (2,) the critic's error at the last two interface times, older first: hand–target
     #                             distance, m (rad, joint-space distance, with LoopConfig.critic_error = "angle")
-    last_rl_ms: jnp.ndarray     # () time of the last critic update, ms
-    last_scaling_ms: jnp.ndarray  # () time of the last synaptic scaling, ms
     target: Target              # where this network reaches (traced, so networks of a batch may differ)
 
 
@@ -128,7 +143,7 @@ class IntervalRecord(NamedTuple):
     q_rad: jnp.ndarray        # (2,) joint angles, rad
     u: jnp.ndarray            # (4,) excitations sent to the arm
     em_counts: jnp.ndarray    # (4,) EM spikes per group in this interval
-    critic: jnp.ndarray       # () +1 reward, -1 punishment, 0 none (always 0 in the test)
+    critic: jnp.ndarray       # () the rule's signal: +1 reward, -1 punishment, 0 none (always 0 in the test)
 
 
 class ClosedLoop:
@@ -150,10 +165,11 @@ class ClosedLoop:
         self.steps_per_interval = config.network.steps_per_interface
         self.pops = Populations(config.network)
 
-    # -- static per-synapse tables of the learning rule --------------------------------------------------------
+    # -- static per-synapse tables and the learning rule ------------------------------------------------------
     @cached_property
     def plastic_tables(self):
-        """(maxw selector, is E->E) per plastic synapse, from the pathway of each synapse."""
+        """Per plastic synapse: whether it ends on an excitatory cell (E->E, bounded by plast_ee_maxw; else E->I,
+        by plast_ei_maxw), from the pathway of each synapse."""
         layout = self.net.layout
         spec = self.net.config.spec
         pw = layout.pathway_of_synapse()[: layout.n_plastic]
@@ -161,23 +177,18 @@ class ClosedLoop:
         return is_ee  # numpy: a cached jax array would leak from the first trace that built it
 
     @cached_property
-    def scaling_tables(self):
-        """Per synapse: |AMPA| + |NMDA| or |GABA| base weight (mV), zero for the generator's (P->ES: scaling counts
-        the 512 network cells only, as in the original), and the total S0 of those base weights."""
-        layout = self.net.layout
-        generators = self.net.config.spec.generators
-        per_pathway = [0.0 if pw.pre in generators else abs(pw.weight_mv) + abs(layout.nmda_weight_mv(pw))
-                       for pw in layout.pathways]
-        base = np.array([per_pathway[i] for i in layout.pathway_of_synapse()], np.float32)
-        return base, float(base.sum())  # numpy, see plastic_tables
+    def rule(self):
+        """The learning rule (:mod:`jaxarm.learning.rule`) of ``config.learning`` with ``config.rule_config``."""
+        return RULES[self.config.learning](self.config.rule_config, self)
 
     # -- pieces ------------------------------------------------------------------------------------------------
     def net_params(self, mp: MetaParams) -> NetworkParams:
         return NetworkParams(max_plast_t_ms=jnp.asarray(mp.max_plast_t_ms, jnp.float32))
 
-    def init(self, noise_key, wgain, babble: bab.BabblingState, em_rates_hz, target: Target | None = None) -> LoopState:
-        """State at the start of a run (an epoch or the test): cells at rest, arm at the start posture. ``target``:
-        where to reach (default: the task's named target)."""
+    def init(self, noise_key, wgain, rule, em_rates_hz, target: Target | None = None) -> LoopState:
+        """State at the start of a run (an epoch or the test): cells at rest, arm at the start posture. ``rule``: the
+        learning rule's state within the run (its ``begin_epoch``'s; None for a run without learning),
+        ``em_rates_hz``: (4,) EM noise rates, Hz; ``target``: where to reach (default: the task's named target)."""
         target = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32),
                               self.config.task.target_params if target is None else target)
         arm_state = self.arm.init(self.start_q)
@@ -189,35 +200,14 @@ class ClosedLoop:
             start_xy = jnp.asarray(self.config.task.start_xy_m, jnp.float32)
             net = self.net.set_target(net, jnp.arctan2(target.xy_m[1] - start_xy[1], target.xy_m[0] - start_xy[0]))
         err0 = self._critic_error(self.arm.observe(arm_state), target)
-        return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), babble=babble,
-                         err_hist_m=jnp.stack([err0, err0]), last_rl_ms=jnp.zeros((), jnp.float32),
-                         last_scaling_ms=jnp.zeros((), jnp.float32), target=target)
+        return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), rule=rule,
+                         err_hist_m=jnp.stack([err0, err0]), target=target)
 
     def _critic_error(self, obs, target: Target):
         """What the critic compares (LoopConfig.critic_error): hand–target distance, m, or joint-space distance, rad."""
         if self.config.critic_error == "angle":
             return jnp.linalg.norm(obs.q - target.q_rad)
         return jnp.linalg.norm(obs.hand - target.xy_m)
-
-    def _reinforce(self, x, aux):
-        """One critic signal applied to every plastic synapse with a live tag (spec §4). x = (wgain, pdope_ms)."""
-        (wgain, pdope), (mp, t_ms, signal) = x, aux
-        n_plastic = self.net.layout.n_plastic
-        maxw = jnp.where(self.plastic_tables, mp.plast_ee_maxw, mp.plast_ei_maxw)
-        w_plastic, pdope = stdp.dopamine_update(wgain[:n_plastic], pdope, True, maxw, mp.learn_rate, t_ms, signal,
-                                                mp.max_elig_tr_dur_ms, config=self.config.eligibility)
-        return wgain.at[:n_plastic].set(w_plastic), pdope
-
-    def _scale(self, wgain, _):
-        """Global synaptic scaling (spec §4): if the weighted total S grew beyond the initial S0, every gain is
-        multiplied by S0/S. Two dot products: the original's per-cell bookkeeping only excludes cells whose outgoing
-        gains are all exactly 0, which soft-bounded multiplicative updates never reach."""
-        base, s0 = self.scaling_tables
-        factor = s0 / jnp.maximum(jnp.dot(base, wgain), 1e-12)
-        return jnp.where((base > 0) & (factor < 1.0), wgain * factor, wgain)  # P->ES inputs are not INTF6 synapses
-
-    def _set_em_rates(self, noise, rates_hz):
-        return noise_mod.set_em_rates(self.config.network, noise, rates_hz)
 
     def _move_arm(self, arm_state, u):
         def body(s, _):
@@ -249,25 +239,11 @@ class ClosedLoop:
         err = self._critic_error(obs, state.target)
         net = self.net.set_lengths(net, obs.proprio)
         signal = jnp.zeros((), jnp.float32)
-        babble, last_rl, last_scaling = state.babble, state.last_rl_ms, state.last_scaling_ms
+        rule = state.rule
         if learn:
-            due = crit.rl_update_due(t_ms, state.last_rl_ms, mp.rl_dt_ms)
-            signal = jnp.where(due, crit.critic_signal(state.err_hist_m[0], state.err_hist_m[1]), 0.0)
-            if c.plasticity:
-                # The updates are due at the critic's and the scaling's moments only; when_any skips them in
-                # every interval where no network of a batch needs them (same result as computing and masking).
-                wgain, pdope = when_any(signal != 0, self._reinforce, (net.wgain, net.pdope_ms), (mp, t_ms, signal))
-                scale_due = (t_ms - state.last_scaling_ms) >= mp.syn_scaling_dt_ms
-                wgain = when_any(scale_due, self._scale, wgain)
-                net = net._replace(wgain=wgain, pdope_ms=pdope)
-                last_scaling = jnp.where(scale_due, t_ms, state.last_scaling_ms)
-            new_babble, rates = bab.babble(key, state.babble, t_ms, mp, config=c.babbling)
-            babble = jax.tree_util.tree_map(lambda a, b: jnp.where(due, a, b), new_babble, state.babble)
-            net = net._replace(noise=when_any(due, self._set_em_rates, net.noise, rates))
-            last_rl = jnp.where(due, t_ms, state.last_rl_ms)
-        state = LoopState(net=net, arm=arm_state, readout=readout, babble=babble,
-                          err_hist_m=jnp.stack([state.err_hist_m[1], err]), last_rl_ms=last_rl,
-                          last_scaling_ms=last_scaling, target=state.target)
+            rule, net, signal = self.rule.update(rule, net, key, Moment(t_ms, state.err_hist_m, err), mp)
+        state = LoopState(net=net, arm=arm_state, readout=readout, rule=rule,
+                          err_hist_m=jnp.stack([state.err_hist_m[1], err]), target=state.target)
         if record:
             return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal), spikes, obs.muscles
         return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal)

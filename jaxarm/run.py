@@ -27,6 +27,7 @@ from jaxarm import parallel, runfolder
 from jaxarm.config.network import RUNTIME_FIELDS, SPEC_KEYS
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import NAMES, MetaParams
+from jaxarm.learning.registry import learning_meta
 from jaxarm.loop import LoopConfig
 from jaxarm.network import Network, NetworkConfig
 from jaxarm.task.config import Target
@@ -186,7 +187,7 @@ class Batch:
 
     # -- identity -------------------------------------------------------------------------------------------------
     def meta(self) -> dict:
-        learning = {} if self.config.gradient is None else {"learning": dataclasses.asdict(self.config.gradient)}
+        learning = learning_meta(self.config.learning, self.config.rule_config)
         return self.description | self.network_meta() | learning
 
     def network_meta(self) -> dict:

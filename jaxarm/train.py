@@ -10,8 +10,10 @@ the same ``epoch`` function one epoch per call so a killed run resumes from its 
 results.
 
 Protocol (spec §6): each epoch is a fresh run of the network (cells, tags and noise streams reset; weights kept) and
-of the arm (start posture); babbling draws continue. The test is 1 s without learning, with every EM group
-receiving ``em_noise_rate_test_hz`` of AMPA noise.
+of the arm (start posture); the learning rule's state carries over (R-STDP's babbling draws continue). The test is
+1 s without learning, with every EM group receiving ``em_noise_rate_test_hz`` of AMPA noise. The rule is
+``config.learning`` (:mod:`jaxarm.learning.rule`): ``make_train`` calls its ``init``, ``begin_epoch`` and
+``end_epoch``, the loop its ``update`` after every training interval.
 """
 from __future__ import annotations
 
@@ -23,23 +25,28 @@ import jax.numpy as jnp
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
+from jaxarm.learning.registry import RULES
 from jaxarm.loop import ClosedLoop, LoopConfig
 from jaxarm.network import noise as noise_mod
 from jaxarm.task.config import Target
 
 
+#: What the rule's key stream is folded with for its ``init``: a domain no epoch (folded with its number) draws from.
+RULE_INIT_FOLD = 0x72756C65   # "rule"
+
+
 class Trained(NamedTuple):
-    """What training leaves: the wiring (drawn from the key) and the learned gains."""
+    """What training leaves: the wiring (drawn from the key), the learned gains and the learning rule's state."""
 
     wiring: Any
     wgain: jnp.ndarray        # (n_syn,) dimensionless
-    babble: bab.BabblingState
+    rule: Any                 # the rule's state across epochs (R-STDP's: the BabblingState)
     noise_key: jnp.ndarray    # the network's noise key (re-used every epoch by default)
 
 
 class EpochCarry(NamedTuple):
     trained: Trained
-    key: jnp.ndarray          # babbling key stream
+    key: jnp.ndarray          # the learning rule's key stream (R-STDP's: babbling)
     epoch: jnp.ndarray        # () int32, epochs completed
 
 
@@ -123,28 +130,28 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
         ``config.task.epochs`` epochs under ``lax.scan``) and ``test(key, trained, mp[, target])`` (the 1 s test
         without learning). ``key`` is a JAX PRNG key (a network's wiring, noise and babbling), ``mp`` a
         :class:`~jaxarm.learning.metaparams.MetaParams` (each field in its own unit: ms, Hz or dimensionless).
-        Each is pure: ``jit`` it and ``vmap`` it over keys (networks), metaparameter sets or targets. With
-        ``config.gradient`` set, the same functions train by gradient descent instead of R-STDP
-        (:mod:`jaxarm.learning.gradient`).
+        Each is pure: ``jit`` it and ``vmap`` it over keys (networks), metaparameter sets or targets. A rule with its
+        own ``make_train`` (gradient learning, :mod:`jaxarm.learning.gradient`) builds the same functions its way.
     """
     from jaxarm import record as rec_mod
 
-    if config.gradient is not None:
-        from jaxarm.learning.gradient import make_gradient_train
-        return make_gradient_train(config, record)
+    own = RULES[config.learning].make_train
+    if own is not None:
+        return own(config, record)
 
     loop = ClosedLoop(config)
+    rule = loop.rule
     net, task = loop.net, config.task
     n_intervals = task.epoch_steps
     last10_intervals = min(n_intervals, round(10.0 / task.update_interval_s))
     layout = net.layout
 
     def init(key) -> EpochCarry:
-        k_wire, k_noise, k_babble = jax.random.split(key, 3)
+        k_wire, k_noise, k_rule = jax.random.split(key, 3)
         wiring = net.make_wiring(k_wire)
         trained = Trained(wiring=wiring, wgain=jnp.ones((layout.n_syn,), jnp.float32),
-                          babble=bab.init_babbling(config.babbling), noise_key=k_noise)
-        return EpochCarry(trained=trained, key=k_babble, epoch=jnp.zeros((), jnp.int32))
+                          rule=rule.init(jax.random.fold_in(k_rule, RULE_INIT_FOLD)), noise_key=k_noise)
+        return EpochCarry(trained=trained, key=k_rule, epoch=jnp.zeros((), jnp.int32))
 
     n_all = config.network.n_all
     rec_intervals = 0
@@ -196,8 +203,8 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
     def _epoch(carry: EpochCarry, mp: MetaParams, target: Target | None, recorded: bool):
         tr = carry.trained
         noise_key = jax.random.fold_in(tr.noise_key, carry.epoch) if config.reseed_noise_each_epoch else tr.noise_key
-        babble = bab.start_epoch(tr.babble)
-        state = loop.init(noise_key, tr.wgain, babble, babble.rates_hz, target)
+        run, em_rates_hz = rule.begin_epoch(tr.rule, tr.wgain, mp)
+        state = loop.init(noise_key, tr.wgain, run, em_rates_hz, target)
         k_epoch = jax.random.fold_in(carry.key, carry.epoch)
         # Run all but the last 10 s, snapshot the spike counts, run the rest: rates over the last 10 s as the spec.
         k1, k2 = jax.random.split(k_epoch)
@@ -210,7 +217,7 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
             rec = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), rec1, rec2)
         counts = state.net.spike_count
         dist = jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1)
-        wgain = state.net.wgain
+        rule_state, wgain = rule.end_epoch(state.rule, state.net, mp)
         mean_w = mean_gain_per_pathway(layout, wgain)
         summary = EpochSummary(
             rates_hz=_pop_rates(loop, counts, task.epoch_duration_s),
@@ -218,7 +225,7 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
             mean_wgain=mean_w, final_distance_m=dist[-1], min_distance_m=dist.min(),
             rewards=jnp.sum(rec.critic > 0), punishments=jnp.sum(rec.critic < 0),
             lost_spikes=state.net.counters.lost_spikes)
-        trained = tr._replace(wgain=wgain, babble=state.babble)
+        trained = tr._replace(wgain=wgain, rule=rule_state)
         carry = EpochCarry(trained=trained, key=carry.key, epoch=carry.epoch + 1)
         return (carry, summary, recording) if recorded else (carry, summary)
 
@@ -230,7 +237,7 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
     def test(key, trained: Trained, mp: MetaParams, target: Target | None = None) -> TestResult:
         rates = bab.em_noise_rates_in_test(mp)
         # The original re-seeds the noise streams identically at every run(), the test included.
-        state = loop.init(trained.noise_key, trained.wgain, trained.babble, rates, target)
+        state = loop.init(trained.noise_key, trained.wgain, None, rates, target)
         if task.test_em_noise_events == "netstim":
             # a NetStim stops once its event count reaches number = tstop * rate / 1000 (a real number)
             number = task.test_duration_s * jnp.asarray(mp.em_noise_rate_test_hz, jnp.float32)

@@ -252,7 +252,7 @@ def test_protocol_checks_map_each_change_to_one_field(tmp_path):
     spec.loader.exec_module(mod)
     base = mod.loop_config("simple", "left", "none")
     assert base == LoopConfig(arm="simple", task=TaskConfig(target="left"))
-    assert mod.loop_config("simple", "left", "paper-babbling").babbling.variant == "paper"
+    assert mod.loop_config("simple", "left", "paper-babbling").rule.babbling.variant == "paper"
     assert mod.loop_config("simple", "left", "reseed-noise").reseed_noise_each_epoch
     angle = mod.loop_config("simple", "bottom", "angle-critic", epochs=2)
     assert angle.critic_error == "angle" and angle.task.target == "bottom" and angle.task.epochs == 2
@@ -366,21 +366,21 @@ def test_a_run_that_loses_spikes_fails_with_the_counts(tmp_path):
 def test_scaling_inside_the_loop_brings_a_grown_network_back_to_its_initial_total():
     """One training interval from gains grown to 1.5 with scaling due: afterwards the network's weighted total
     equals S0 (the learning step of the same interval, if any, comes first, so the total is exactly S0)."""
-    from jaxarm.learning import babbling as bab
     from jaxarm.loop import ClosedLoop
 
     loop = ClosedLoop(SMALL)
-    base, s0 = loop.scaling_tables
+    base, s0 = loop.rule.scaling_tables
     wiring = loop.net.make_wiring(jax.random.PRNGKey(0))
-    b0 = bab.init_babbling(loop.config.babbling)
-    state = loop.init(jax.random.PRNGKey(1), jnp.full((loop.net.layout.n_syn,), 1.5), b0, b0.rates_hz)
     mp = MetaParams.from_dict({"syn_scaling_dt_ms": 1000.0})
+    wgain = jnp.full((loop.net.layout.n_syn,), 1.5)
+    run, em_rates_hz = loop.rule.begin_epoch(loop.rule.init(None), wgain, mp)
+    state = loop.init(jax.random.PRNGKey(1), wgain, run, em_rates_hz)
     for last, expect_scaled in ((-1000.0, True), (0.0, False)):   # due at t = 10 ms, or not
-        s = state._replace(last_scaling_ms=jnp.float32(last))
+        s = state._replace(rule=state.rule._replace(last_scaling_ms=jnp.float32(last)))
         after, _ = jax.jit(lambda s: loop.interval(wiring, s, jax.random.PRNGKey(2), mp, learn=True))(s)
         total = float(np.dot(base, np.asarray(after.net.wgain, np.float64)))
         if expect_scaled:
-            assert total == pytest.approx(s0, rel=1e-5) and float(after.last_scaling_ms) == 10.0
+            assert total == pytest.approx(s0, rel=1e-5) and float(after.rule.last_scaling_ms) == 10.0
         else:
             assert total > 1.4 * s0
 
@@ -407,7 +407,7 @@ def test_native_and_xla_kernels_train_identically_and_babbling_switches():
     np.testing.assert_allclose(np.asarray(tx.wgain), np.asarray(tn.wgain), rtol=1e-6, atol=1e-7)
     assert float(np.abs(np.asarray(tx.wgain) - 1.0).max()) > 0.01
     # babbling: the first pattern lasts 1000 ms, then a new duration and pattern are drawn at a critic moment
-    assert np.all(np.asarray(tn.babble.last_change_ms) >= 1000.0)
+    assert np.all(np.asarray(tn.rule.last_change_ms) >= 1000.0)
 
 
 @pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI

@@ -143,7 +143,7 @@ def test_train_by_gradient_then_retest_from_the_folder(tmp_path, capsys):
     res = json.loads((out / "results.json").read_text())
     # tested as R-STDP's networks are: the configuration's kernel (native where it is built), not the training's XLA
     from jaxarm.network import native
-    assert res["config"]["learning"] == dataclasses.asdict(GradientConfig(reach_s=0.3))
+    assert res["config"]["learning"] == {"rule": "gradient"} | dataclasses.asdict(GradientConfig(reach_s=0.3))
     assert res["config"]["kernel"] == ("native" if native.available() else "xla")
     assert res["history"]["rewards"] == [0] and res["history"]["lost_spikes"] == 0
     # every step's loss, gradient norm and skip are kept: two steps, finite, losses in metres

@@ -144,13 +144,12 @@ def test_plastic_pathways_and_their_maxima_are_the_originals():
 @pytest.fixture(scope="module")
 def tagged_loop_state():
     """A simple-arm loop state after 0.6 s of training (live tags, learned gains), and its loop."""
-    from jaxarm.learning import babbling as bab
     from jaxarm.loop import ClosedLoop, LoopConfig
 
     loop = ClosedLoop(LoopConfig(arm="simple"))
     wiring = loop.net.make_wiring(jax.random.PRNGKey(0))
-    babble0 = bab.init_babbling(loop.config.babbling)
-    state = loop.init(jax.random.PRNGKey(1), None, babble0, babble0.rates_hz)
+    run, em_rates_hz = loop.rule.begin_epoch(loop.rule.init(None), None, MP)
+    state = loop.init(jax.random.PRNGKey(1), None, run, em_rates_hz)
     state, _ = jax.jit(lambda s: loop.run(wiring, s, jax.random.PRNGKey(2), MP, 60, learn=True))(state)
     return loop, state
 
@@ -162,7 +161,7 @@ def test_a_reward_potentiates_and_a_punishment_depresses_exactly_the_live_tagged
     layout = loop.net.layout
     t_ms = 600.0
     wgain, pdope = np.asarray(state.net.wgain), np.asarray(state.net.pdope_ms)
-    new, _ = loop._reinforce((state.net.wgain, state.net.pdope_ms), (MP, jnp.float32(t_ms), jnp.float32(signal)))
+    new, _ = loop.rule.reinforce((state.net.wgain, state.net.pdope_ms), (MP, jnp.float32(t_ms), jnp.float32(signal)))
     new = np.asarray(new)
     live = np.zeros(layout.n_syn, bool)
     live[:layout.n_plastic] = (pdope > NO_TAG_MS) & (t_ms - pdope <= float(MP.max_elig_tr_dur_ms))
@@ -197,12 +196,12 @@ def test_the_loops_synaptic_scaling_equals_the_per_cell_original():
     layout = loop.net.layout
     wiring = loop.net.make_wiring(jax.random.PRNGKey(0))
     pre = np.asarray(wiring.pre)[:layout.n_syn]
-    base, _ = loop.scaling_tables
+    base, _ = loop.rule.scaling_tables
     rng = np.random.default_rng(0)
     for spread in (0.8, 1.8):   # total shrunk (no scaling) and grown (scaled back)
         wgain = (rng.uniform(0.5, 1.0, layout.n_syn) * spread).astype(np.float32)
         expected, factor = reference_scaling(wgain, pre, base, loop.config.network.n_cells)
-        got = np.asarray(loop._scale(jnp.asarray(wgain), None))
+        got = np.asarray(loop.rule.scale(jnp.asarray(wgain), None))
         np.testing.assert_allclose(got, expected, rtol=2e-6)
         assert (factor < 1.0) == (spread > 1.0)
         if factor < 1.0:   # the total of the network's base weights is back at S0

@@ -1,5 +1,7 @@
 """The authors' learning rule as array primitives: critic, the reward-modulated update, motor babbling, and the
-tuned metaparameters (spec §4, §5, §7). Tagging runs inside the network kernels; synaptic scaling in the loop."""
+tuned metaparameters (spec §4, §5, §7). Tagging runs inside the network kernels; the rules built from these
+primitives, behind one interface, are in :mod:`jaxarm.learning.rule` (interface), :mod:`jaxarm.learning.rstdp`,
+:mod:`jaxarm.learning.gradient`, :mod:`jaxarm.learning.perturbation` and :mod:`jaxarm.learning.registry`."""
 from jaxarm.learning.babbling import (EXPLORE_PATTERNS, BabblingConfig, BabblingState, babble,
                                       em_noise_rates_in_test, init_babbling, pattern_rates, start_epoch)
 from jaxarm.learning.critic import MIN_ERROR_CHANGE_M, critic_signal, rl_update_due

@@ -1,7 +1,7 @@
 """Gradient learning on the reaching task: the same network, arm and test as R-STDP, the gains trained by Adam on
 the reaching loss through the closed loop (network -> readout -> arm -> distance to target).
 
-    fns = make_train(LoopConfig(arm="simple", gradient=GradientConfig()))   # the same TrainFns as R-STDP's
+    fns = make_train(LoopConfig(arm="simple", learning="gradient"))   # the same TrainFns as R-STDP's
     trained, history = jax.jit(fns.train)(key, MetaParams.original())
     result = jax.jit(fns.test)(key, trained, MetaParams.original())      # R-STDP's test, the same code
 
@@ -28,7 +28,7 @@ How it differs from R-STDP training (and why):
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -38,8 +38,11 @@ from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
-from jaxarm.loop import LoopConfig
+from jaxarm.learning.rule import LearningRule, plastic_upper
 from jaxarm.task.config import Target
+
+if TYPE_CHECKING:   # the loop imports the rule registry, which imports this module
+    from jaxarm.loop import LoopConfig
 
 
 #: What a training reach's noise key is folded with before its step number: a domain no test key is drawn from.
@@ -66,35 +69,37 @@ class StepSummary(NamedTuple):
 
 
 def differentiable_config(config: LoopConfig, grad: GradientConfig | None = None) -> LoopConfig:
-    """The loop gradient training runs (``grad``, default ``config.gradient`` or ``GradientConfig()``): surrogate
-    spikes (XLA kernel) and the smooth musculoskeletal arm. Not the test's: that is :func:`published_config`."""
-    grad = grad or config.gradient or GradientConfig()
+    """The loop gradient training runs (``grad``, default the configuration's own or ``GradientConfig()``):
+    surrogate spikes (XLA kernel) and the smooth musculoskeletal arm. Not the test's: that is
+    :func:`published_config`."""
+    grad = grad or (config.rule_config if config.learning == "gradient" else GradientConfig())
     network = dataclasses.replace(config.network, spike_gradient="fast_sigmoid", surrogate_width_mv=grad.width_mv,
                                   surrogate_scale=grad.scale, kernel="xla")
-    return dataclasses.replace(config, network=network, smooth_arm=config.arm == "musculoskeletal", gradient=grad)
+    return dataclasses.replace(config, network=network, smooth_arm=config.arm == "musculoskeletal",
+                               learning="gradient", rule=grad)
 
 
 def published_config(config: LoopConfig) -> LoopConfig:
-    """The loop every network is tested on, whatever trained it: no gradient, spikes without surrogate, the
-    published arm, the configuration's kernel."""
+    """The loop every network is tested on, whatever trained it: spikes without surrogate, the published arm, the
+    configuration's kernel; the default rule, whose ``make_train`` runs the loop's test (no rule acts in a test)."""
     network = dataclasses.replace(config.network, spike_gradient="none")
-    return dataclasses.replace(config, network=network, smooth_arm=False, gradient=None)
+    return dataclasses.replace(config, network=network, smooth_arm=False, learning="rstdp", rule=None)
 
 
 def make_gradient_train(config: LoopConfig, record=None):
-    """:func:`jaxarm.train.make_train` for a ``config`` with ``gradient`` set (it calls this): the same
+    """:func:`jaxarm.train.make_train` for a ``config`` with ``learning = "gradient"`` (it calls this): the same
     :class:`~jaxarm.train.TrainFns` (init, epoch, train, test), with gradient epochs (see the module docstring)
     and R-STDP's test on :func:`published_config`, and ``step(carry, mp, target, k)`` -> (carry, (StepSummary,
     spike counts)), the k-th gradient step alone."""
     from jaxarm.train import EpochSummary, TrainFns, _pop_rates, make_train, mean_gain_per_pathway
 
-    grad = config.gradient
+    grad = config.rule_config
     tested = make_train(published_config(config), record)
     config = differentiable_config(config, grad)
     if record is not None and record.train_last_s > 0:
         raise ConfigError("--record-train-s with gradient learning: training runs reaches, not recorded epochs "
                           "(record the test only)")
-    base = make_train(dataclasses.replace(config, gradient=None))
+    base = make_train(dataclasses.replace(config, learning="rstdp", rule=None))
     loop, task = base.loop, config.task
     reach = round(grad.reach_s / task.update_interval_s)
     per_epoch = round(task.epoch_duration_s / grad.reach_s)
@@ -112,7 +117,7 @@ def make_gradient_train(config: LoopConfig, record=None):
     def upper(mp: MetaParams):
         if is_ee is None:
             return jnp.asarray(mp.plast_ee_maxw, jnp.float32)
-        return jnp.where(jnp.asarray(is_ee), mp.plast_ee_maxw, mp.plast_ei_maxw)
+        return plastic_upper(jnp.asarray(is_ee), mp)
 
     def init(key) -> GradientCarry:
         trained = base.init(key).trained
@@ -121,9 +126,9 @@ def make_gradient_train(config: LoopConfig, record=None):
     def reach_loss(gains, trained, mp: MetaParams, noise_key, target: Target | None = None):
         """Mean hand-target distance (m) of one reach with background noise ``noise_key`` and the first
         ``n_train`` gains replaced by ``gains``; aux: (min, final distance, spike counts (n_all,))."""
-        state = loop.init(noise_key, trained.wgain.at[:n_train].set(gains), trained.babble,
+        state = loop.init(noise_key, trained.wgain.at[:n_train].set(gains), None,
                           bab.em_noise_rates_in_test(mp), target)
-        # the loop's keys feed babbling only, which a reach without learning does not use
+        # the loop's keys feed the learning rule only, which a reach without learning does not run
         state, rec = loop.run(trained.wiring, state, jax.random.key(0), mp, reach, learn=False)
         dist = jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1)
         return jnp.mean(dist), (jnp.min(dist), dist[-1], state.net.spike_count)
@@ -158,3 +163,28 @@ def make_gradient_train(config: LoopConfig, record=None):
 
     return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=tested.test, record=record, step=step,
                     reach_loss=reach_loss)
+
+
+class GradientLearning(LearningRule):
+    """Gradient learning behind the rule interface: it trains by whole reaches, not in the loop's intervals, so it
+    replaces the epoch loop (:func:`make_gradient_train`) instead of implementing the interval hooks."""
+
+    Config = GradientConfig
+    summary = ("Adam on the mean hand-target distance of 1 s reaches, through surrogate spikes and the arm, with the "
+               "same network-seconds (docs/gradients.md)")
+    make_train = staticmethod(make_gradient_train)
+
+    @classmethod
+    def add_arguments(cls, group) -> None:
+        d = GradientConfig()
+        group.add_argument("--gradient-lr", type=float, default=d.learning_rate, metavar="LR",
+                           help=f"gradient learning: Adam's step size, per unit gain (default {d.learning_rate})")
+        group.add_argument("--reach-s", type=float, default=d.reach_s, metavar="S",
+                           help=f"gradient learning: length of one training reach (one step), s (default "
+                                f"{d.reach_s:g})")
+        group.add_argument("--gradient-params", choices=("plastic", "all"), default=d.params,
+                           help="gradient learning: the gains trained: plastic (those R-STDP trains, default) or all")
+
+    @classmethod
+    def config_from_arguments(cls, args) -> GradientConfig:
+        return GradientConfig(learning_rate=args.gradient_lr, reach_s=args.reach_s, params=args.gradient_params)
