@@ -137,6 +137,7 @@ def test_newton_solves_the_backward_euler_equation_inside_the_admissible_range(p
     assert bool(inside) and float(newton_step) < 5e-8  # a few float32 steps of a 0.1 m length (7.5e-9 m)
 
 
+@pytest.mark.slow  # ~25 s of compiling a gradient: the default suite's 8-minute budget
 def test_smooth_backward_euler_has_finite_gradients(params):
     """With every kink softened, jax.grad through 200 backward-Euler steps of the muscles along a moving path is
     finite and agrees with a central difference."""
