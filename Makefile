@@ -3,7 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test test-slow bench docs
+.PHONY: demo test test-slow bench docs notebooks
 
 $(BIN)/jaxarm: pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -38,3 +38,9 @@ $(BIN)/mkdocs: pyproject.toml $(BIN)/jaxarm
 
 docs: $(BIN)/mkdocs
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
+
+# The tutorials (notebooks/*.ipynb) executed and stored with their outputs, at the sizes of each notebook's
+# parameter cell (notebooks/execute.py; 50 min on this project's 2-core machine, shared with other jobs). The site
+# shows them as stored; `make test-slow` executes each again and compares.
+notebooks: $(BIN)/jaxarm
+	$(BIN)/python notebooks/execute.py

@@ -10,6 +10,8 @@
   spec (``.1f``, ``,.0f``) or one of :data:`FORMATS`. Where a page is read unrendered (README.md on GitHub), the
   number is written out and followed by ``<!-- result: FILE : PATH [: FORMAT] -->``; the build (for the site's
   pages) and tests/test_docs.py (for README.md too) fail when the number before such a marker is not the file's.
+* **The tutorials' links.** A notebook links the documentation as ``../docs/PAGE.md`` (right on GitHub and in
+  Jupyter); on the site those links point to the page (:func:`notebook_links`).
 * **The command-line reference** (``cli.md``) is generated from the argument parsers of the ``jaxarm`` commands
   (:func:`jaxarm.cli.parser`) whenever the site is built, so it lists exactly the options they accept.
 """
@@ -171,6 +173,17 @@ def cli_reference() -> str:
 GENERATED = {"cli.md": cli_reference}
 
 
+# ---------------------------------------------------------------- the tutorials' links
+_NOTEBOOK_LINK = re.compile(r'href="\.\./docs/([\w/-]+)\.md(#[^"]*)?"')
+
+
+def notebook_links(html_: str) -> str:
+    """A tutorial links the documentation as ``../docs/PAGE.md``, which resolves where the notebook is read (GitHub,
+    Jupyter in ``notebooks/``); on the site, where the notebook is the page ``tutorials/NAME/``, that link becomes
+    ``../../PAGE/``."""
+    return _NOTEBOOK_LINK.sub(lambda m: f'href="../../{m.group(1)}/{m.group(2) or ""}"', html_)
+
+
 # ---------------------------------------------------------------- MkDocs events
 def on_files(files, config):
     from mkdocs.structure.files import File
@@ -193,5 +206,7 @@ def on_page_markdown(markdown, page, config, files):
 
 
 def on_page_content(html_, page, config, files):
+    if page.file.src_uri.endswith(".ipynb"):
+        html_ = notebook_links(html_)
     html_ = _ROLE.sub("", html_)
     return _TILDE.sub(r"<code>\1</code>", html_)

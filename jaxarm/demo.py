@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -41,7 +42,8 @@ def rollout(arm, excitation: float, drive_s: float, duration_s: float):
 def plot(results: dict, path: Path, dt: dict) -> None:
     import matplotlib
 
-    matplotlib.use("Agg")
+    if "matplotlib.pyplot" not in sys.modules:   # a notebook's own backend stays (a switch closes its figures)
+        matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, len(results), figsize=(5.5 * len(results), 8), squeeze=False)

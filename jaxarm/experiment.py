@@ -29,6 +29,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+import sys
 
 from jaxarm import parallel, runfolder
 from jaxarm.analysis.reach import reach_metrics
@@ -244,7 +245,8 @@ def plot_reach(path, t, hand, naive_hand, target, radius, title):
     """Hand paths and velocity profiles, trained vs naive (the paper's Fig. 6 layout)."""
     import matplotlib
 
-    matplotlib.use("Agg")
+    if "matplotlib.pyplot" not in sys.modules:   # a notebook's own backend stays (a switch closes its figures)
+        matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
@@ -412,7 +414,7 @@ def _centre_out_main(ap, args, base: dict) -> int:
     from jaxarm.task.centre_out import CentreOut, ensure_target_code, train_and_test
 
     try:
-        if args.learning != "rstdp" or args.record_spikes or args.test_each_epoch:
+        if args.learning != DEFAULT or args.record_spikes or args.test_each_epoch:
             raise ConfigError("--task centre-out-8: R-STDP learning only, without --record-spikes or "
                               "--test-each-epoch (not yet)")
         task = CentreOut(epochs_per_target=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s)

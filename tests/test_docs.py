@@ -132,3 +132,14 @@ def test_the_prose_filter_sees_a_hash_and_a_date():
     assert not HASH.search(_prose("[x](searches.md#18-x-2026-12-04) ModelDB 183014, snapshot 1dd5002, 1e-3"))
     assert not DATE.search(_prose("run on 2026-12-05<!-- result: reproduce_simple.json : date --> on"))
 
+
+def test_a_tutorials_links_to_the_docs_resolve_on_the_site():
+    html = '<a href="../docs/reproducing.md#success-counts">x</a> <a href="../docs/cli.md">y</a> <a href="#z">z</a>'
+    assert hooks.notebook_links(html) == ('<a href="../../reproducing/#success-counts">x</a> '
+                                          '<a href="../../cli/">y</a> <a href="#z">z</a>')
+    for path in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        for target in re.findall(r"\]\(([^)\s]+)\)", path.read_text()):
+            if re.match(r"[a-z]+:", target) or target.startswith("#"):
+                continue
+            assert target.startswith("../docs/"), f"{path.name}: {target} (link the docs as ../docs/PAGE.md)"
+            assert (ROOT / "notebooks" / target.split("#")[0]).exists(), f"{path.name}: {target}"

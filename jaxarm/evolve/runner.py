@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Callable, NamedTuple
@@ -126,7 +127,8 @@ def history_table(state: SearchState, space: SearchSpace) -> dict:
 def plot_convergence(history: dict, path: Path, title: str = "") -> None:
     """Best, median and best-so-far fitness per generation (top), failed candidates (bottom)."""
     import matplotlib
-    matplotlib.use("Agg")
+    if "matplotlib.pyplot" not in sys.modules:   # a notebook's own backend stays (a switch closes its figures)
+        matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     gen = np.asarray(history["generation"])

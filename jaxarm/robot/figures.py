@@ -7,6 +7,7 @@
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,8 @@ from jaxarm.robot.metrics import dimensionless_jerk, hand_xy, jerk, signals
 
 def _plt():
     import matplotlib
-    matplotlib.use("Agg")
+    if "matplotlib.pyplot" not in sys.modules:   # a notebook's own backend stays (a switch closes its figures)
+        matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
 

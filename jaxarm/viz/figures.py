@@ -63,7 +63,8 @@ def pop_color(f: SpikeFile, pop: str) -> str:
 def plt():
     import matplotlib
 
-    matplotlib.use("Agg")
+    if "matplotlib.pyplot" not in sys.modules:   # a notebook's own backend stays (a switch closes its figures)
+        matplotlib.use("Agg")
     import matplotlib.pyplot as pyplot
 
     return pyplot
