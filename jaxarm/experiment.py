@@ -40,7 +40,7 @@ from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig
 from jaxarm.run import Run, SetsRun, add_network_arguments, network_config
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
-from jaxarm.train import Trained
+from jaxarm.train import fresh_noise
 
 
 def _metrics(result, target_xy, dt):
@@ -61,25 +61,33 @@ def _network_rows(seeds, metrics) -> list[dict]:
 
 def learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
     """results.json's ``learning_curve`` from per-epoch tests (``Batch.learning_curve``: 1-based epoch ->
-    {"success", "min_distance_m"} per network) and the naive test's successes (epoch 0).
+    {"success", "min_distance_m"} per network, and "fresh_noise_success", "fresh_noise_min_distance_m" where the
+    epochs were also tested on held-out noise) and the naive test's successes (epoch 0).
 
     ``criterion_s`` per network: the training time (network-seconds) after which its test first succeeded: 0 if the
     naive network already reaches, None if no tested epoch reached or if an epoch before the first success was not
-    tested (a run resumed with ``--test-each-epoch`` after training without it)."""
+    tested (a run resumed with ``--test-each-epoch`` after training without it). ``fresh_noise_*``: the same on
+    held-out noise, where every tested epoch has it."""
     epochs = sorted(curve)
-    success = np.asarray([curve[e]["success"] for e in epochs], bool)              # (epochs, networks)
-    closest = np.asarray([curve[e]["min_distance_m"] for e in epochs], float)
     complete = epochs == list(range(1, len(epochs) + 1))
-    criterion = []
-    for i, naive in enumerate(np.asarray(naive_success, bool)):
-        hits = np.nonzero(success[:, i])[0]
-        # sorted epochs from 1: epochs[j] == j + 1 means every epoch up to the first success was tested
-        first = 0 if naive else (epochs[hits[0]] if hits.size and epochs[hits[0]] == hits[0] + 1 else None)
-        criterion.append(None if first is None else round(first * epoch_s, 3))
-    return {"epochs": epochs, "epoch_s": epoch_s, "complete": complete,
-            "success_count": success.sum(axis=1).tolist(),
-            "median_min_distance_m": np.median(closest, axis=1).round(5).tolist(),
-            "criterion_s": criterion}
+
+    def curve_of(prefix: str) -> dict:
+        success = np.asarray([curve[e][prefix + "success"] for e in epochs], bool)      # (epochs, networks)
+        closest = np.asarray([curve[e][prefix + "min_distance_m"] for e in epochs], float)
+        criterion = []
+        for i, naive in enumerate(np.asarray(naive_success, bool)):
+            hits = np.nonzero(success[:, i])[0]
+            # sorted epochs from 1: epochs[j] == j + 1 means every epoch up to the first success was tested
+            first = 0 if naive else (epochs[hits[0]] if hits.size and epochs[hits[0]] == hits[0] + 1 else None)
+            criterion.append(None if first is None else round(first * epoch_s, 3))
+        return {prefix + "success_count": success.sum(axis=1).tolist(),
+                prefix + "median_min_distance_m": np.median(closest, axis=1).round(5).tolist(),
+                prefix + "criterion_s": criterion}
+
+    out = {"epochs": epochs, "epoch_s": epoch_s, "complete": complete} | curve_of("")
+    if all("fresh_noise_success" in curve[e] for e in epochs):
+        out |= curve_of("fresh_noise_")
+    return out
 
 
 def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
@@ -500,12 +508,6 @@ def _parse_overrides(items: list[str]) -> dict[str, float]:
             raise ConfigError(f"--set {name} = {v:g} is outside its range [{b.lo:g}, {b.hi:g}] {b.unit}")
         out[name] = v
     return out
-
-
-def fresh_noise(trained: Trained, j: int) -> Trained:
-    """The same trained networks with fresh background-noise streams: each network's noise key folded with
-    ``1000 + j`` (the test re-uses the training streams otherwise, as the original does)."""
-    return trained._replace(noise_key=jax.vmap(lambda k: jax.random.fold_in(k, 1000 + j))(trained.noise_key))
 
 
 def test_main(argv: list[str] | None = None) -> int:

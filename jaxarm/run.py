@@ -31,7 +31,7 @@ from jaxarm.learning.registry import learning_meta
 from jaxarm.loop import LoopConfig
 from jaxarm.network import Network, NetworkConfig
 from jaxarm.task.config import Target
-from jaxarm.train import EpochSummary, TestResult, Trained, make_train
+from jaxarm.train import EpochSummary, TestResult, Trained, fresh_noise, make_train
 
 #: NetworkConfig fields the commands set from their options; recorded in a run's meta when not the default.
 NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "readout_clip")
@@ -132,11 +132,16 @@ def describe_differences(saved: dict, now: dict, most: int = 4) -> str:
     return text + (f"; and {len(diff) - most} more field(s)" if len(diff) > most else "")
 
 
-def curve_entry(result: TestResult) -> dict:
-    """What :meth:`Batch.train` keeps of a test after an epoch by default: per network, success and closest
-    approach (m)."""
-    return {"success": np.asarray(result.success).tolist(),
-            "min_distance_m": np.asarray(result.min_distance_m).round(5).tolist()}
+def curve_entry(result: TestResult, held_out: TestResult | None = None) -> dict:
+    """What :meth:`Batch.train` keeps of the tests after an epoch by default: per network, success and closest
+    approach (m) on the network's own noise stream (the one R-STDP trains on, as the original tests) and, with
+    ``held_out``, the same on a stream no rule trains on (:func:`jaxarm.train.fresh_noise` with ``j = 0``)."""
+    entry = {"success": np.asarray(result.success).tolist(),
+             "min_distance_m": np.asarray(result.min_distance_m).round(5).tolist()}
+    if held_out is not None:
+        entry |= {"fresh_noise_success": np.asarray(held_out.success).tolist(),
+                  "fresh_noise_min_distance_m": np.asarray(held_out.min_distance_m).round(5).tolist()}
+    return entry
 
 
 class Batch:
@@ -288,10 +293,10 @@ class Batch:
               test_each_epoch: bool | Callable[[TestResult], dict] = False):
         """Train all networks (resuming from ``out/checkpoints``). ``stop_after``: return after that many epochs of
         this invocation, as a kill would (tests use it). ``test_each_epoch``: also run the 1 s test after every
-        epoch and keep ``summarise(result)`` (a JSON-able dict; True: :func:`curve_entry`) in
-        :attr:`learning_curve`; its time is not counted in ``wall_s``. Returns (carry, history, wall_s, epochs_run,
+        epoch and keep ``summarise(result)`` (a JSON-able dict) in :attr:`learning_curve`; True: :func:`curve_entry`
+        of that test and of a second one on held-out noise (:func:`jaxarm.train.fresh_noise`, ``j = 0``); the tests'
+        time is not counted in ``wall_s``. Returns (carry, history, wall_s, epochs_run,
         compile_s): ``carry`` on the mesh (padded), ``history`` host arrays (epochs, networks, ...)."""
-        summarise = test_each_epoch if callable(test_each_epoch) else curve_entry
         from jaxarm.checkpoint import Checkpointer
 
         epochs = self.config.task.epochs
@@ -338,8 +343,13 @@ class Batch:
                 wall += time.perf_counter() - t0
                 self.check_capacity(summary.lost_spikes, f"training epoch {e + 1}")
                 jax.tree.map(lambda h, s: h.__setitem__(e, s), history, summary)
-                if test_each_epoch:
-                    self.learning_curve[e + 1] = summarise(self.test(carry.trained, f"test after epoch {e + 1}"))
+                if callable(test_each_epoch):
+                    self.learning_curve[e + 1] = test_each_epoch(self.test(carry.trained, f"test after epoch {e + 1}"))
+                elif test_each_epoch:
+                    what = f"test after epoch {e + 1}"
+                    self.learning_curve[e + 1] = curve_entry(
+                        self.test(carry.trained, what),
+                        self.test(fresh_noise(carry.trained, 0), what + " on held-out noise"))
                 ckpt.save(e + 1, (carry, parallel.put(history, parallel.REPLICATED, self.mesh)),
                           self.meta() | {"layout": self.layout(),
                                          "learning_curve": {str(k): v for k, v in self.learning_curve.items()}})

@@ -44,6 +44,13 @@ class Trained(NamedTuple):
     noise_key: jnp.ndarray    # the network's noise key (re-used every epoch by default)
 
 
+def fresh_noise(trained: Trained, j: int) -> Trained:
+    """The same trained networks with fresh background-noise streams: each network's noise key folded with
+    ``1000 + j`` (the test re-uses the training streams otherwise, as the original does; gradient learning's
+    training reaches draw from a domain of their own, so these streams are held out from every rule)."""
+    return trained._replace(noise_key=jax.vmap(lambda k: jax.random.fold_in(k, 1000 + j))(trained.noise_key))
+
+
 class EpochCarry(NamedTuple):
     trained: Trained
     key: jnp.ndarray          # the learning rule's key stream (R-STDP's: babbling)

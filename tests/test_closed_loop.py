@@ -313,6 +313,12 @@ def test_learning_curve_equals_runs_of_each_length_and_resumes(tmp_path):
     assert curve["success_count"] == [r["success"] for r in full["rows"][1:]]
     assert [100 * d for d in curve["median_min_distance_m"]] == \
         [pytest.approx(r["closest_median_cm"], abs=2e-3) for r in full["rows"][1:]]
+    # and its held-out curve's last epoch is `jaxarm test --fresh-noise 0` of the trained networks
+    assert main(["test", "--from", str(tmp_path / "cli"), "--fresh-noise", "0", "--out", str(tmp_path / "fresh")]) == 0
+    fresh = json.loads((tmp_path / "fresh" / "results.json").read_text())
+    assert curve["fresh_noise_success_count"][-1] == fresh["success_count"]
+    assert curve["fresh_noise_median_min_distance_m"][-1] == pytest.approx(
+        float(np.median([n["min_distance_m"] for n in fresh["networks"]])), abs=2e-5)
 
 
 @pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
@@ -460,3 +466,10 @@ def test_learning_curve_criterion_by_hand():
     assert learning_curve({2: curve[2]}, [False] * 3, 30.0)["criterion_s"] == [None, None, None]
     gap = learning_curve({1: curve[1], 3: curve[2]}, [False] * 3, 30.0)
     assert gap["criterion_s"] == [None, None, 30.0] and not gap["complete"]
+    assert "fresh_noise_criterion_s" not in out
+    # the same epochs also tested on held-out noise: their own counts and criterion, beside the training stream's
+    held = {e: c | {"fresh_noise_success": c["success"][::-1], "fresh_noise_min_distance_m": c["min_distance_m"]}
+            for e, c in curve.items()}
+    both = learning_curve(held, [False] * 3, 30.0)
+    assert both["criterion_s"] == out["criterion_s"]
+    assert both["fresh_noise_criterion_s"] == [30.0, 60.0, None] and both["fresh_noise_success_count"] == [1, 1]
