@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxarm.arm import GROUPS, make_arm
+from jaxarm.arm.registry import BACKENDS
 
 CONDITIONS = ("none",) + GROUPS
 
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--excitation", type=float, default=0.5, help="group excitation in [0, 1] (default 0.5)")
     ap.add_argument("--drive-s", type=float, default=0.3, help="seconds of drive (default 0.3)")
     ap.add_argument("--duration-s", type=float, default=1.0, help="seconds simulated (default 1.0)")
-    ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal backend")
+    ap.add_argument("--backend", choices=BACKENDS, default="fast", help="musculoskeletal backend")
     args = ap.parse_args(argv)
     if not 0.0 <= args.excitation <= 1.0:
         ap.error(f"--excitation = {args.excitation}: must be in [0, 1]")

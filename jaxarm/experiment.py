@@ -33,6 +33,7 @@ import sys
 
 from jaxarm import parallel, runfolder
 from jaxarm.analysis.reach import reach_metrics
+from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.learning.registry import DEFAULT, RULES, rule_from_meta
@@ -40,6 +41,7 @@ from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig
 from jaxarm.run import Run, SetsRun, add_network_arguments, network_config
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
+from jaxarm.task.registry import DEFAULT as TASK_DEFAULT, TASKS
 from jaxarm.train import fresh_noise
 
 
@@ -275,9 +277,9 @@ def plot_reach(path, t, hand, naive_hand, target, radius, title):
 
 
 def _add_common(ap):
-    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="simple",
+    ap.add_argument("--arm", choices=tuple(ARMS), default="simple",
                     help="simple (authors' kinematic arm, their default) or musculoskeletal")
-    ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
+    ap.add_argument("--backend", choices=BACKENDS, default="fast", help="musculoskeletal geometry backend")
     ap.add_argument("--target", nargs="+", default=["left"], choices=sorted(TARGET_ANGLES_RAD),
                     help="target(s); one subfolder of --out each when several (paper: left bottom)")
     ap.add_argument("--networks", type=int, default=4, help="networks trained in parallel (paper: 30)")
@@ -360,7 +362,7 @@ def train_main(argv: list[str] | None = None) -> int:
                    help="; ".join(f"{name}: {rule.summary}" for name, rule in RULES.items()))
     for rule in RULES.values():
         rule.add_arguments(g)
-    ap.add_argument("--task", choices=("reaching", "centre-out-8"), default="reaching",
+    ap.add_argument("--task", choices=tuple(TASKS), default=TASK_DEFAULT,
                     help="reaching (default): one --target per network, the paper's task; centre-out-8: the "
                          "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
                          "epoch, a target code added to the network unless --network has one, every network tested "

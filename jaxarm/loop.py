@@ -26,6 +26,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.arm import make_arm
+from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.gradient import GradientConfig
 from jaxarm.config.network import NetworkConfig
 from jaxarm.config.validate import ConfigError, check_choice
@@ -37,7 +39,6 @@ from jaxarm.network.network import Network, NetworkParams
 from jaxarm.network.populations import Populations
 from jaxarm.task.config import Target, TaskConfig
 
-ARMS = ("simple", "musculoskeletal")
 #: Longest run (epoch or test) in network clock steps: float32 times step * dt keep a quarter-step resolution.
 MAX_RUN_STEPS = 2 ** 22
 
@@ -47,7 +48,8 @@ class LoopConfig:
     """Static structure of a closed-loop run.
 
     Attributes:
-        arm: "simple" (the authors' kinematic arm, their default) or "musculoskeletal".
+        arm: a name of :data:`jaxarm.arm.registry.ARMS`: "simple" (the authors' kinematic arm, their default) or
+            "musculoskeletal".
         backend: geometry backend of the musculoskeletal arm, "fast" or "mjx".
         network, task: the sub-configurations.
         reseed_noise_each_epoch: False (the original) restarts the background-noise streams identically at every
@@ -83,7 +85,7 @@ class LoopConfig:
     def __post_init__(self):
         check_choice(self, "arm", ARMS)
         check_choice(self, "critic_error", ("xy", "angle"))
-        check_choice(self, "backend", ("fast", "mjx"))
+        check_choice(self, "backend", BACKENDS)
         if self.gradient is not None:
             if not isinstance(self.gradient, GradientConfig):
                 raise ConfigError(f"LoopConfig.gradient = {self.gradient!r}: must be None or a GradientConfig")
@@ -150,12 +152,10 @@ class ClosedLoop:
     """Pure functions of one closed-loop configuration."""
 
     def __init__(self, config: LoopConfig = LoopConfig()):
-        from jaxarm.arm import make_arm
-
         self.config = config
         self.net = Network(config.network)
         self.arm = make_arm(config.arm, backend=config.backend,
-                            smooth=config.smooth_arm and config.arm == "musculoskeletal")
+                            smooth=config.smooth_arm and ARMS[config.arm].smooth)
         arm_dt_ms = self.arm.dt_s * 1000.0
         self.arm_steps = int(round(config.network.interface_ms / arm_dt_ms))
         if abs(self.arm_steps * arm_dt_ms - config.network.interface_ms) > 1e-6:

@@ -18,11 +18,12 @@ import json
 import sys
 
 from jaxarm import parallel, runfolder
+from jaxarm.arm.registry import ARMS
 from jaxarm.config.validate import ConfigError
+from jaxarm.task.registry import DEFAULT as DEFAULT_TASK, TASKS
 
-DEFAULT_FITNESS = "reaching"
-#: --task: the targets and the fitness it implies (either can still be given)
-TASKS = {"reaching": (("left", "bottom"), DEFAULT_FITNESS), "centre-out-8": (None, "centre-out")}
+#: the fitness of the default task (--task gives its own: TASKS[task].fitness)
+DEFAULT_FITNESS = TASKS[DEFAULT_TASK].fitness
 
 
 def _pairs(text: str, what: str) -> dict:
@@ -45,13 +46,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--out", type=runfolder.folder_argument,
                     help="output folder (checkpoints, history.json, top_k.json, convergence.png); resumed when it "
                          "holds a checkpoint; one command at a time (OUT/jaxarm.lock)")
-    ap.add_argument("--task", choices=tuple(TASKS), default="reaching",
+    ap.add_argument("--task", choices=tuple(TASKS), default=DEFAULT_TASK,
                     help="reaching (default): one network per target, the paper's search; centre-out-8: one network "
                          "trained on the original's eight centre-out targets in turn, with a target code "
                          "(jaxarm.task.centre_out), fitness centre-out")
     ap.add_argument("--fitness", default=None,
                     help=f"registered fitness (default {DEFAULT_FITNESS!r}, or the --task's; see --list-fitness)")
-    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), default="musculoskeletal", help="arm")
+    ap.add_argument("--arm", choices=tuple(ARMS), default="musculoskeletal", help="arm")
     ap.add_argument("--targets", default=None, help="comma-separated targets (default left,bottom, or the --task's)")
     ap.add_argument("--train-s", type=float, default=None,
                     help="simulated training length per evaluation, s (default: the candidate's epochs x 30 s)")
@@ -211,14 +212,13 @@ def generation_layout(config, mesh=None) -> str:
 def _apply_task(args) -> None:
     """Fill ``--targets`` and ``--fitness`` from ``--task`` where they were not given; a reaching fitness with
     ``--task centre-out-8`` is an error, as it would not search the task asked for."""
-    from jaxarm.task.centre_out import CENTRE_OUT_8
-
-    targets, fitness = TASKS[args.task]
+    task = TASKS[args.task]
+    fitness = task.fitness
     if args.targets is None:
-        args.targets = ",".join(targets or CENTRE_OUT_8)
+        args.targets = ",".join(task.targets)
     if args.fitness is None:
         args.fitness = fitness
-    if args.task == "centre-out-8" and not args.fitness.startswith("centre-out"):
+    if args.task != DEFAULT_TASK and not args.fitness.startswith(fitness):
         raise ConfigError(f"--fitness {args.fitness} does not score --task {args.task}: use the task's fitness "
                           f"({fitness!r}) or leave --fitness out")
 

@@ -42,10 +42,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxarm.config.validate import ConfigError, check_range
+from jaxarm.arm.registry import ARMS
+from jaxarm.config.validate import ConfigError, check_choice, check_range
 from jaxarm.learning.metaparams import BOUNDS, NAMES, MetaParams, to_unit
-
-ARM_KINDS = ("simple", "musculoskeletal")
 
 
 @dataclass(frozen=True)
@@ -53,7 +52,7 @@ class FitnessOptions:
     """What a registered fitness is built for (the ``jaxarm evolve`` options).
 
     Attributes:
-        arm: "simple" or "musculoskeletal".
+        arm: a name of :data:`jaxarm.arm.registry.ARMS`, "simple" or "musculoskeletal".
         targets: target names (see :data:`jaxarm.task.config.TARGET_ANGLES_RAD`); the paper's are left and bottom.
         train_s: simulated training length per evaluation, s (short for a fast proxy; the paper's protocol is
             12 epochs x 30 s = 360 s), or ``None`` to train for the candidate's own ``epochs`` x 30 s.
@@ -79,8 +78,7 @@ class FitnessOptions:
 
     def __post_init__(self):
         from jaxarm.task.config import TARGET_ANGLES_RAD   # light (no JAX work)
-        if self.arm not in ARM_KINDS:
-            raise ConfigError(f"FitnessOptions.arm = {self.arm!r}: must be one of {', '.join(map(repr, ARM_KINDS))}")
+        check_choice(self, "arm", ARMS)
         targets = tuple(self.targets)
         if not targets:
             raise ConfigError("FitnessOptions.targets = (): give at least one target")

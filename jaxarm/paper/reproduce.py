@@ -40,9 +40,11 @@ import jax
 import numpy as np
 
 from jaxarm import parallel, runfolder
+from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.network import RUNTIME_FIELDS
 from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
+from jaxarm.task.registry import DEFAULT as TASK_DEFAULT, TASKS
 
 #: Trained networks reaching the target in the paper (§3.2; spec reference_values.md), out of PAPER_N: its 30 best
 #: metaparameter configurations of the search, one network each (our mode (b)).
@@ -476,8 +478,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     ap = argparse.ArgumentParser(prog="jaxarm reproduce", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--arm", choices=("simple", "musculoskeletal"), help="arm (required for a reproduction)")
-    ap.add_argument("--task", choices=("reaching", "centre-out-8"), default="reaching",
+    ap.add_argument("--arm", choices=tuple(ARMS), help="arm (required for a reproduction)")
+    ap.add_argument("--task", choices=tuple(TASKS), default=TASK_DEFAULT,
                     help="reaching (default): the paper's two-target statistics; centre-out-8: one network per seed "
                          "trained on the original's eight centre-out targets in turn with a target code, and the "
                          "control without it, tested on every target (--epochs per target, default 3; "
@@ -500,7 +502,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="change this metaparameter in the best set and in every top set (repeatable; e.g. "
                          "explore_tot=8); recorded in success_table.json")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
-    ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
+    ap.add_argument("--backend", choices=BACKENDS, default="fast", help="musculoskeletal geometry backend")
     ap.add_argument("--dt-ms", type=float, default=None,
                     help="network clock step, ms (default 0.25, what every preset was searched with; e.g. 0.1 to "
                          "check that a count does not depend on the step)")

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxarm import parallel, runfolder
+from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
 
@@ -269,7 +270,7 @@ def preset_from_ranking(folder: Path, name: str, description: str | None = None)
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="jaxarm rerank", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--arm", choices=("simple", "musculoskeletal"))
+    ap.add_argument("--arm", choices=tuple(ARMS))
     ap.add_argument("--target", help="one target (left, bottom, ...)")
     ap.add_argument("--pool",
                     help="comma-separated presets (names or .json paths: best and top sets) and earlier `jaxarm "
@@ -287,7 +288,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "mean distance after entry, the paper's measure of staying (stay)")
     ap.add_argument("--epoch-s", type=float, default=30.0, help="seconds per epoch (paper: 30)")
     ap.add_argument("--test-s", type=float, default=1.0, help="test duration, s (paper: 1)")
-    ap.add_argument("--backend", choices=("fast", "mjx"), default="fast", help="musculoskeletal geometry backend")
+    ap.add_argument("--backend", choices=BACKENDS, default="fast", help="musculoskeletal geometry backend")
     ap.add_argument("--out", type=runfolder.folder_argument,
                     help="output folder (a rerun resumes it; one command at a time, OUT/jaxarm.lock)")
     ap.add_argument("--make-preset", metavar="NAME", help="when ranked, also write preset NAME.json of the ranking")

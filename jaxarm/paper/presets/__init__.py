@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxarm.arm.registry import ARMS
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams
 
@@ -52,7 +53,6 @@ ARCHIVE = "archive"
 ORIGINAL_NAME = "original"
 #: The paper reported its 30 best configurations.
 MAX_TOP = 30
-ARMS = ("simple", "musculoskeletal")
 _NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.-]{0,63}$")
 
 
