@@ -13,11 +13,10 @@ Protocol (spec §6): each epoch is a fresh run of the network (cells, tags and n
 of the arm (start posture); the learning rule's state carries over (R-STDP's babbling draws continue). The test is
 1 s without learning, with every EM group receiving ``em_noise_rate_test_hz`` of AMPA noise. The rule is
 ``config.learning`` (:mod:`jaxarm.learning.rule`): ``make_train`` calls its ``init``, ``begin_epoch`` and
-``end_epoch``, the loop its ``update`` after every training interval.
+``end_epoch``, the loop its ``update`` after every training interval. The types it returns are
+:mod:`jaxarm.learning.training`'s (re-exported here).
 """
 from __future__ import annotations
-
-from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -26,6 +25,8 @@ from jaxarm.config.validate import ConfigError
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.learning.registry import RULES
+from jaxarm.learning.training import (EpochCarry, EpochSummary, TestResult, Trained, TrainFns,  # noqa: F401
+                                     mean_gain_per_pathway, pop_rates)
 from jaxarm.loop import ClosedLoop, LoopConfig
 from jaxarm.network import noise as noise_mod
 from jaxarm.task.config import Target
@@ -35,90 +36,11 @@ from jaxarm.task.config import Target
 RULE_INIT_FOLD = 0x72756C65   # "rule"
 
 
-class Trained(NamedTuple):
-    """What training leaves: the wiring (drawn from the key), the learned gains and the learning rule's state."""
-
-    wiring: Any
-    wgain: jnp.ndarray        # (n_syn,) dimensionless
-    rule: Any                 # the rule's state across epochs (R-STDP's: the BabblingState)
-    noise_key: jnp.ndarray    # the network's noise key (re-used every epoch by default)
-
-
 def fresh_noise(trained: Trained, j: int) -> Trained:
     """The same trained networks with fresh background-noise streams: each network's noise key folded with
     ``1000 + j`` (the test re-uses the training streams otherwise, as the original does; gradient learning's
     training reaches draw from a domain of their own, so these streams are held out from every rule)."""
     return trained._replace(noise_key=jax.vmap(lambda k: jax.random.fold_in(k, 1000 + j))(trained.noise_key))
-
-
-class EpochCarry(NamedTuple):
-    trained: Trained
-    key: jnp.ndarray          # the learning rule's key stream (R-STDP's: babbling)
-    epoch: jnp.ndarray        # () int32, epochs completed
-
-
-class EpochSummary(NamedTuple):
-    """Per epoch (leading axis = epoch under scan)."""
-
-    rates_hz: jnp.ndarray          # (6,) mean firing rate of ES, IS, ISL, EM, IM, IML over the epoch, Hz
-    rates_last10s_hz: jnp.ndarray  # (6,) the same over the epoch's last 10 s (the spec §10 convention)
-    mean_wgain: jnp.ndarray        # (n_pathways,) mean gain per pathway at the end of the epoch
-    final_distance_m: jnp.ndarray  # () hand–target distance at the end of the epoch, m
-    min_distance_m: jnp.ndarray    # () closest approach during the epoch, m
-    rewards: jnp.ndarray           # () critic rewards in the epoch
-    punishments: jnp.ndarray       # () critic punishments
-    lost_spikes: jnp.ndarray       # () spike-list overflow (must be 0)
-    #: gradient learning only: every step of the epoch (jaxarm.learning.gradient.StepSummary, leading axis = step)
-    gradient_steps: Any = None
-
-
-class TestResult(NamedTuple):
-    """The 1 s test of one trained network (T = test intervals of 10 ms); lengths in m, angles in rad."""
-
-    hand_m: jnp.ndarray        # (T + 1, 2) hand positions at t = 0, 10, ..., 1000 ms, m
-    q_rad: jnp.ndarray         # (T + 1, 2) joint angles, rad
-    u: jnp.ndarray             # (T, 4) excitations
-    distance_m: jnp.ndarray    # (T + 1,) hand–target distance, m
-    min_distance_m: jnp.ndarray
-    final_distance_m: jnp.ndarray
-    success: jnp.ndarray       # () bool: entered the success circle
-    rates_hz: jnp.ndarray      # (6,) firing rates in the test, Hz
-    lost_spikes: jnp.ndarray
-    record: Any = None         # jaxarm.record.Recording of the test when make_train was given a RecordConfig
-
-
-class TrainFns(NamedTuple):
-    """The pure functions of one configuration. ``target`` (a :class:`~jaxarm.task.config.Target`, traced) is
-    optional everywhere: without it the task's named target; with it networks of one batch reach different targets."""
-
-    loop: ClosedLoop
-    init: Callable            # key -> EpochCarry
-    epoch: Callable           # (carry, mp[, target]) -> (carry, EpochSummary)
-    train: Callable           # (key, mp[, target]) -> (Trained, EpochSummary stacked over epochs)
-    test: Callable            # (key, Trained, mp[, target]) -> TestResult (with its record if recording)
-    #: with RecordConfig.train_last_s > 0: (carry, mp[, target]) -> (carry, EpochSummary, Recording of the epoch's
-    #: last train_last_s seconds); carry and summary equal ``epoch``'s
-    epoch_recorded: Callable | None = None
-    record: Any = None        # the RecordConfig (static), or None: nothing recorded, the loop compiled without it
-    #: gradient learning only (``LoopConfig.gradient``): (carry, mp, target, k) -> (carry, (StepSummary, counts)),
-    #: the k-th gradient step (jaxarm.learning.gradient)
-    step: Callable | None = None
-    #: gradient learning only: (gains, trained, mp, noise_key[, target]) -> (mean hand-target distance of one reach,
-    #: m; (min, final distance, spike counts)), the loss a step differentiates (gains: the first n trained gains)
-    reach_loss: Callable | None = None
-
-
-def _pop_rates(loop: ClosedLoop, counts, seconds):
-    pops = loop.pops
-    return jnp.stack([jnp.sum(counts[..., pops.slice(p)], axis=-1) / (loop.config.network.size(p) * seconds)
-                      for p in loop.config.network.spec.network_populations])
-
-
-def mean_gain_per_pathway(layout, wgain):
-    """(n_pathways,) mean gain of each pathway's synapses."""
-    pathway_of = jnp.asarray(layout.pathway_of_synapse())
-    return jax.ops.segment_sum(wgain, pathway_of, num_segments=len(layout.in_degree)) / jnp.asarray(
-        [layout.config.size(pw.post) * layout.in_degree[pw.name] for pw in layout.pathways], jnp.float32)
 
 
 def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
@@ -138,13 +60,20 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
         without learning). ``key`` is a JAX PRNG key (a network's wiring, noise and babbling), ``mp`` a
         :class:`~jaxarm.learning.metaparams.MetaParams` (each field in its own unit: ms, Hz or dimensionless).
         Each is pure: ``jit`` it and ``vmap`` it over keys (networks), metaparameter sets or targets. A rule with its
-        own ``make_train`` (gradient learning, :mod:`jaxarm.learning.gradient`) builds the same functions its way.
+        own ``make_train`` (gradient learning, :mod:`jaxarm.learning.gradient`) builds the same functions its way,
+        given :func:`make_interval_train` to build the loop's and the test's.
     """
-    from jaxarm import record as rec_mod
-
     own = RULES[config.learning].make_train
     if own is not None:
-        return own(config, record)
+        return own(config, record, make_interval_train)
+    return make_interval_train(config, record)
+
+
+def make_interval_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
+    """:func:`make_train` of a rule that learns inside the loop's intervals (``init``, ``begin_epoch``, ``update``,
+    ``end_epoch``; :mod:`jaxarm.learning.rule`), whatever ``config.learning`` says: the epoch loop and the 1 s test
+    every rule's networks are tested with."""
+    from jaxarm import record as rec_mod
 
     loop = ClosedLoop(config)
     rule = loop.rule
@@ -227,8 +156,8 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
         rule_state, wgain = rule.end_epoch(state.rule, state.net, mp)
         mean_w = mean_gain_per_pathway(layout, wgain)
         summary = EpochSummary(
-            rates_hz=_pop_rates(loop, counts, task.epoch_duration_s),
-            rates_last10s_hz=_pop_rates(loop, counts - counts_mid, last10_intervals * task.update_interval_s),
+            rates_hz=pop_rates(loop, counts, task.epoch_duration_s),
+            rates_last10s_hz=pop_rates(loop, counts - counts_mid, last10_intervals * task.update_interval_s),
             mean_wgain=mean_w, final_distance_m=dist[-1], min_distance_m=dist.min(),
             rewards=jnp.sum(rec.critic > 0), punishments=jnp.sum(rec.critic < 0),
             lost_spikes=state.net.counters.lost_spikes)
@@ -265,7 +194,7 @@ def make_train(config: LoopConfig = LoopConfig(), record=None) -> TrainFns:
         dist = jnp.linalg.norm(hand - state.target.xy_m, axis=-1)
         return TestResult(hand_m=hand, q_rad=q, u=rec.u, distance_m=dist, min_distance_m=dist.min(),
                           final_distance_m=dist[-1], success=jnp.any(dist <= task.success_radius_m),
-                          rates_hz=_pop_rates(loop, state.net.spike_count, task.test_duration_s),
+                          rates_hz=pop_rates(loop, state.net.spike_count, task.test_duration_s),
                           lost_spikes=state.net.counters.lost_spikes, record=recording)
 
     return TrainFns(loop=loop, init=init, epoch=epoch, train=train, test=test,

@@ -39,6 +39,7 @@ from jaxarm.config.validate import ConfigError
 from jaxarm.learning import babbling as bab
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.learning.rule import LearningRule, plastic_upper
+from jaxarm.learning.training import EpochSummary, TrainFns, mean_gain_per_pathway, pop_rates
 from jaxarm.task.config import Target
 
 if TYPE_CHECKING:   # the loop imports the rule registry, which imports this module
@@ -52,7 +53,7 @@ TRAIN_NOISE_FOLD = 0x67726164   # "grad"
 class GradientCarry(NamedTuple):
     """What gradient training carries from epoch to epoch (``.trained`` as R-STDP's EpochCarry)."""
 
-    trained: Any              # jaxarm.train.Trained
+    trained: Any              # jaxarm.learning.training.Trained
     opt_state: Any            # Adam's state over the trained gains
     epoch: jnp.ndarray        # () int32, epochs completed
 
@@ -86,20 +87,19 @@ def published_config(config: LoopConfig) -> LoopConfig:
     return dataclasses.replace(config, network=network, smooth_arm=False, learning="rstdp", rule=None)
 
 
-def make_gradient_train(config: LoopConfig, record=None):
-    """:func:`jaxarm.train.make_train` for a ``config`` with ``learning = "gradient"`` (it calls this): the same
-    :class:`~jaxarm.train.TrainFns` (init, epoch, train, test), with gradient epochs (see the module docstring)
-    and R-STDP's test on :func:`published_config`, and ``step(carry, mp, target, k)`` -> (carry, (StepSummary,
-    spike counts)), the k-th gradient step alone."""
-    from jaxarm.train import EpochSummary, TrainFns, _pop_rates, make_train, mean_gain_per_pathway
-
+def make_gradient_train(config: LoopConfig, record, interval_train):
+    """:func:`jaxarm.train.make_train` for a ``config`` with ``learning = "gradient"`` (it calls this, with
+    ``interval_train`` = :func:`jaxarm.train.make_interval_train`, which builds the loop and R-STDP's test): the
+    same :class:`~jaxarm.learning.training.TrainFns` (init, epoch, train, test), with gradient epochs (see the
+    module docstring) and R-STDP's test on :func:`published_config`, and ``step(carry, mp, target, k)`` -> (carry,
+    (StepSummary, spike counts)), the k-th gradient step alone."""
     grad = config.rule_config
-    tested = make_train(published_config(config), record)
+    tested = interval_train(published_config(config), record)
     config = differentiable_config(config, grad)
     if record is not None and record.train_last_s > 0:
         raise ConfigError("--record-train-s with gradient learning: training runs reaches, not recorded epochs "
                           "(record the test only)")
-    base = make_train(dataclasses.replace(config, learning="rstdp", rule=None))
+    base = interval_train(dataclasses.replace(config, learning="rstdp", rule=None))
     loop, task = base.loop, config.task
     reach = round(grad.reach_s / task.update_interval_s)
     per_epoch = round(task.epoch_duration_s / grad.reach_s)
@@ -150,8 +150,8 @@ def make_gradient_train(config: LoopConfig, record=None):
                                               jnp.arange(per_epoch))
         wgain = carry.trained.wgain
         summary = EpochSummary(
-            rates_hz=_pop_rates(loop, counts.sum(0), per_epoch * grad.reach_s),
-            rates_last10s_hz=_pop_rates(loop, counts[-last10:].sum(0), last10 * grad.reach_s),
+            rates_hz=pop_rates(loop, counts.sum(0), per_epoch * grad.reach_s),
+            rates_last10s_hz=pop_rates(loop, counts[-last10:].sum(0), last10 * grad.reach_s),
             mean_wgain=mean_gain_per_pathway(layout, wgain), final_distance_m=steps.final_distance_m[-1],
             min_distance_m=steps.min_distance_m.min(), rewards=jnp.zeros((), jnp.int32),
             punishments=jnp.zeros((), jnp.int32), lost_spikes=jnp.zeros((), jnp.int32), gradient_steps=steps)

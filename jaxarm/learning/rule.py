@@ -19,7 +19,7 @@ maps names to rules). ``make_train`` and the loop call a rule at four points:
 ``mp`` is the traced :class:`~jaxarm.learning.metaparams.MetaParams` (a rule reads the fields it uses), so every
 function ``vmap``-s over networks and metaparameter sets. A rule that does not learn inside the loop's intervals
 (gradient learning trains by whole reaches) sets :attr:`LearningRule.make_train` instead and builds its own
-``TrainFns``.
+``TrainFns`` (:mod:`jaxarm.learning.training`).
 """
 from __future__ import annotations
 
@@ -56,7 +56,10 @@ class LearningRule:
 
     Config: ClassVar[type]
     summary: ClassVar[str]
-    #: (loop_config, record) -> TrainFns for a rule that replaces the epoch loop (None: the interval hooks run)
+    #: (loop_config, record, interval_train) -> TrainFns for a rule that replaces the epoch loop (None: the interval
+    #: hooks run); ``interval_train(loop_config, record)`` (:func:`jaxarm.train.make_interval_train`) builds the
+    #: interval rules' TrainFns, whose ``loop`` and ``test`` such a rule may reuse: the rule imports neither the loop
+    #: nor ``jaxarm.train``, which sit above it
     make_train: ClassVar[Callable | None] = None
 
     def __init__(self, config, loop):
