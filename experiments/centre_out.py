@@ -46,7 +46,8 @@ def main(argv=None) -> int:
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.paper import presets
-    from jaxarm.task.centre_out import CentreOut, run_with_control, table_markdown
+    from jaxarm.run_centre_out import run_with_control, table_markdown
+    from jaxarm.task.centre_out import CentreOut
 
     mp = MetaParams.from_dict(presets.load(args.preset).best) if args.preset != "original" else MetaParams.original()
 

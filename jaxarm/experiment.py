@@ -366,7 +366,7 @@ def train_main(argv: list[str] | None = None) -> int:
                     help="reaching (default): one --target per network, the paper's task; centre-out-8: the "
                          "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
                          "epoch, a target code added to the network unless --network has one, every network tested "
-                         "on every target (jaxarm.task.centre_out; one process, no checkpoints)")
+                         "on every target (jaxarm.run_centre_out; one process, no checkpoints)")
     ap.add_argument("--test-each-epoch", action="store_true",
                     help="also test every network after every epoch: results.json's learning_curve (successes per "
                          "epoch, and per network the training seconds until its test first succeeded)")
@@ -421,7 +421,8 @@ def _centre_out_main(ap, args, base: dict) -> int:
     """``jaxarm train --task centre-out-8``: train and test in one batch, write results.json and trajectories.npz."""
     import time
 
-    from jaxarm.task.centre_out import CentreOut, ensure_target_code, train_and_test
+    from jaxarm.run_centre_out import train_and_test
+    from jaxarm.task.centre_out import CentreOut, ensure_target_code
 
     try:
         if args.learning != DEFAULT or args.record_spikes or args.test_each_epoch:

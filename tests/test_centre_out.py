@@ -11,7 +11,8 @@ from jaxarm.config.network import NetworkConfig
 from jaxarm.config.spec import NetworkSpec
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
-from jaxarm.task.centre_out import CENTRE_OUT_8, CentreOut, ensure_target_code, make_centre_out_train, with_target_code
+from jaxarm.run_centre_out import make_centre_out_train
+from jaxarm.task.centre_out import CENTRE_OUT_8, CentreOut, ensure_target_code, with_target_code
 from jaxarm.task.config import TARGET_ANGLES_RAD, forward_kinematics_m
 
 TINY = dict(epochs_per_target=1, epoch_duration_s=0.2, test_duration_s=0.2)
@@ -101,7 +102,7 @@ def test_networks_train_to_the_same_bits_in_a_batch_of_three_and_of_ten():
     """The batch runs through jaxarm.parallel.sharded_map (groups of 8 networks on every device, padded): keys 0-2
     trained as a batch of 3 and as the first 3 of 10 give the same test paths and successes (a plain vmap over 3
     and over 10 networks compiles different code, which may round differently in the last bit)."""
-    from jaxarm.task.centre_out import train_and_test
+    from jaxarm.run_centre_out import train_and_test
 
     task = CentreOut(targets=("right", "left"), epochs_per_target=1, epoch_duration_s=1.0, test_duration_s=0.2)
     spec = with_target_code(NetworkSpec.dura_bernal_2015(), task, cells_per_target=4)

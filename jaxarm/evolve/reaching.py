@@ -133,7 +133,8 @@ def make_centre_out(options: fitness.FitnessOptions, margin_m: float = 0.02) -> 
     over targets of how far the closest approach stays outside the circle ``margin_m`` inside the success circle."""
     import dataclasses
 
-    from jaxarm.task.centre_out import ensure_target_code, make_centre_out_train
+    from jaxarm.run_centre_out import make_centre_out_train
+    from jaxarm.task.centre_out import ensure_target_code
 
     train_s = 8 * 3 * EPOCH_S if options.train_s is None else float(options.train_s)
     task = _centre_out_task(options.targets, train_s)

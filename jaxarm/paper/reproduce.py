@@ -569,14 +569,15 @@ def reproduce_main(argv: list[str] | None = None) -> int:
 
 
 def _reproduce_centre_out(args, preset, argv) -> int:
-    """``jaxarm reproduce --task centre-out-8``: :func:`jaxarm.task.centre_out.run_with_control` with the preset's
+    """``jaxarm reproduce --task centre-out-8``: :func:`jaxarm.run_centre_out.run_with_control` with the preset's
     best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; one process,
     every core as the native kernel's threads; a rerun skips the finished condition."""
     from jaxarm.experiment import _parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.run import network_config as network_config_of
-    from jaxarm.task.centre_out import CentreOut, run_with_control, table_markdown
+    from jaxarm.run_centre_out import run_with_control, table_markdown
+    from jaxarm.task.centre_out import CentreOut
 
     if args.targets is not None or args.top != preset_lib.MAX_TOP or args.backend != "fast":
         raise ConfigError("--task centre-out-8 takes the eight targets, the preset's best set only and the fast "

@@ -9,18 +9,14 @@ k is direction group k of an 8-group target code.
 
     task = CentreOut()                                    # the eight targets, 3 epochs each, cycled
     net = NetworkConfig(spec=with_target_code(NetworkSpec.dura_bernal_2015()))
-    fns = make_centre_out_train(LoopConfig(network=net, task=task.task_config()), task)
-    trained, history = fns.train(key, mp)                 # epoch e trains toward target e % 8
-    results = fns.test(key, trained, mp)                  # TestResult with a leading (8,) target axis
+
+This module is the task as data; :mod:`jaxarm.run_centre_out` trains and tests on it (``make_centre_out_train``,
+``train_and_test``, ``run_with_control``).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
-from typing import Callable, NamedTuple
-
-import jax
-import jax.numpy as jnp
+from dataclasses import dataclass
 
 from jaxarm.config.spec import GENERATOR, NetworkSpec, Pathway, Population
 from jaxarm.config.validate import ConfigError, check_range
@@ -89,157 +85,3 @@ def with_target_code(spec: NetworkSpec, task: CentreOut = CentreOut(), name: str
 def ensure_target_code(spec: NetworkSpec, task: CentreOut = CentreOut(), **code) -> NetworkSpec:
     """``spec`` itself when it already has a target code, else ``with_target_code(spec, task, **code)``."""
     return spec if spec.target_codes else with_target_code(spec, task, **code)
-
-
-class CentreOutFns(NamedTuple):
-    """``train(key, mp) -> (Trained, EpochSummary history)``; ``test(key, trained, mp) -> TestResult`` with a
-    leading target axis; ``fns``: the underlying :class:`jaxarm.train.TrainFns`."""
-
-    train: Callable
-    test: Callable
-    fns: object
-
-
-def make_centre_out_train(config, task: CentreOut = CentreOut(), record=None) -> CentreOutFns:
-    """Pure train and test functions of the centre-out task for one static ``config`` (a LoopConfig whose task is
-    ``task.task_config()``; it is replaced by that if it differs)."""
-    from jaxarm.train import make_train
-
-    if config.task != task.task_config():
-        config = replace(config, task=task.task_config())
-    fns = make_train(config, record)
-    targets = jax.tree.map(jnp.asarray, task.stacked_targets())
-    n = len(task.targets)
-
-    def train(key, mp):
-        def epoch(carry, _):
-            target = jax.tree.map(lambda a: a[carry.epoch % n], targets)
-            return fns.epoch(carry, mp, target)
-
-        carry, history = jax.lax.scan(epoch, fns.init(key), None, length=config.task.epochs)
-        return carry.trained, history
-
-    def test(key, trained, mp):
-        return jax.vmap(fns.test, in_axes=(None, None, None, 0))(key, trained, mp, targets)
-
-    return CentreOutFns(train=train, test=test, fns=fns)
-
-
-def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
-    """Train one network per seed (key ``PRNGKey(seed)``) in one batch, test each, and each untrained network, on
-    every target; returns plain results: success per (network, target), counts per target (trained and naive), the
-    distribution of targets reached per network, median closest approach per target (cm), hand paths (m)."""
-    import numpy as np
-
-    from jaxarm import parallel
-    from jaxarm.run import network_keys
-
-    fns = make_centre_out_train(config, task)
-    keys = network_keys(seeds)
-    # over every device of this process, in groups of networks_at_once, as `jaxarm train` runs its batches: the
-    # same bits on any device count and batch size (docs/scaling.md, "Known limit", for another batch's rows)
-    m = parallel.mesh() if jax.process_count() == 1 else None
-    over_networks = lambda fn: jax.jit(parallel.sharded_map(fn, m))   # noqa: E731
-    trained, history = over_networks(lambda k: fns.train(k, mp))(keys)
-    test = over_networks(lambda k, t: fns.test(k, t, mp))
-    res = test(keys, trained)
-    naive = test(keys, over_networks(lambda k: fns.fns.init(k).trained)(keys))
-    n_t = len(task.targets)
-    spec = config.network.spec
-    hist = {"rates_last10s_hz": {p: np.asarray(history.rates_last10s_hz)[:, :, j].mean(axis=0).round(3).tolist()
-                                 for j, p in enumerate(spec.network_populations)},
-            "mean_wgain": {pw.name: np.asarray(history.mean_wgain)[:, :, j].mean(axis=0).round(4).tolist()
-                           for j, pw in enumerate(spec.pathways) if pw.plastic},
-            "rewards": np.asarray(history.rewards).mean(axis=0).round(1).tolist(),
-            "punishments": np.asarray(history.punishments).mean(axis=0).round(1).tolist(),
-            "min_distance_cm": (100 * np.asarray(history.min_distance_m).mean(axis=0)).round(2).tolist()}
-    out = {"targets": list(task.targets), "directions_deg": [round(d, 1) for d in task.directions_deg()],
-           "seeds": [int(s) for s in seeds], "history_mean_over_networks_by_epoch": hist,
-           "test_rates_hz": {p: np.asarray(res.rates_hz)[..., j].mean().round(3).item()
-                             for j, p in enumerate(spec.network_populations)},
-           "naive_test_rates_hz": {p: np.asarray(naive.rates_hz)[..., j].mean().round(3).item()
-                                   for j, p in enumerate(spec.network_populations)},
-           "lost_spikes": int(np.asarray(history.lost_spikes).sum() + np.asarray(res.lost_spikes).sum())}
-    for name, r in (("trained", res), ("naive", naive)):
-        ok = np.asarray(r.success)                                                # (networks, targets)
-        out[name] = {"success": ok.astype(int).tolist(),
-                     "per_target": {t: int(ok[:, k].sum()) for k, t in enumerate(task.targets)},
-                     "targets_reached_per_network": np.bincount(ok.sum(axis=1), minlength=n_t + 1).tolist(),
-                     "median_min_distance_cm": {t: round(100 * float(np.median(np.asarray(r.min_distance_m)[:, k])), 2)
-                                                for k, t in enumerate(task.targets)},
-                     "hand_m": np.asarray(r.hand_m)}
-    return out
-
-
-#: The two conditions of the centre-out comparison: the network with a target code, and without (the control)
-CONDITIONS = ("target-code", "control")
-
-
-def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=CONDITIONS, code: dict | None = None,
-                     plastic=None, meta: dict | None = None, log=print) -> dict:
-    """Train and test one network per seed on every target of ``task`` under each condition: ``target-code``
-    (``config``'s network with ``with_target_code(spec, task, **code)`` unless it has one) and ``control`` (the
-    network without any target code and its pathways; when ``config``'s only plastic pathways were the code's,
-    nothing in the control learns and its trained networks are its naive ones). ``plastic``: names of the only
-    plastic pathways of the target-code network (e.g. ``("T->EM",)``; default: as built). Results go to
-    ``out/centre_out.json`` after each condition; a rerun with the same description skips the conditions already
-    there. Returns that file's content."""
-    import dataclasses
-    import json
-    import time
-    from pathlib import Path
-
-    out = Path(out)
-    base = config.network.spec
-    for name in base.target_codes:        # the control: the network without its target code(s) and their pathways
-        base = base.without_population(name)
-    coded = ensure_target_code(config.network.spec, task, **(code or {}))
-    if plastic is not None:
-        coded = coded.with_plastic(plastic)
-    specs = {"target-code": coded, "control": base}
-    unknown = [c for c in conditions if c not in specs]
-    if unknown:
-        raise ConfigError(f"conditions: {unknown[0]!r} is not one of {', '.join(CONDITIONS)}")
-    description = {"arm": config.arm, "task": dataclasses.asdict(task), "seeds": [int(s) for s in seeds],
-                   "metaparams": mp.to_dict(), "code": code or {}, "plastic": None if plastic is None else
-                   sorted(plastic), "dt_ms": config.network.dt_ms}
-    path = out / "centre_out.json"
-    done = json.loads(path.read_text()) if path.exists() else {}
-    if done.get("description") != json.loads(json.dumps(description)):
-        done = {}
-    result = {**(meta or {}), "description": description, "conditions": done.get("conditions", {})}
-    out.mkdir(parents=True, exist_ok=True)
-    for name in conditions:
-        if name in result["conditions"]:
-            log(f"{name}: already in {path}")
-            continue
-        t0 = time.perf_counter()
-        cfg = dataclasses.replace(config, network=dataclasses.replace(config.network, spec=specs[name]))
-        r = train_and_test(cfg, task, seeds, mp)
-        for k in ("trained", "naive"):
-            r[k].pop("hand_m")
-        r.update(condition=name, populations=list(specs[name].names),
-                 network_seconds=len(r["seeds"]) * task.task_config().epochs * task.epoch_duration_s,
-                 wall_s=round(time.perf_counter() - t0, 1))
-        result["conditions"][name] = r
-        path.write_text(json.dumps(result, indent=1))
-        log(f"{name}: trained and tested in {r['wall_s']} s ({r['network_seconds']:g} network-s); lost spikes "
-            f"{r['lost_spikes']}")
-    return result
-
-
-def table_markdown(result: dict) -> str:
-    """The per-target table of :func:`run_with_control`'s result: trained (naive) counts per condition, then the
-    networks by number of targets reached."""
-    conds = list(result["conditions"].values())
-    n = len(conds[0]["seeds"])
-    lines = ["| target (direction) | " + " | ".join(f"{c['condition']}: trained (naive)" for c in conds) + " |",
-             "|---|" + "---|" * len(conds)]
-    for k, t in enumerate(conds[0]["targets"]):
-        cells = [f"{c['trained']['per_target'][t]}/{n} ({c['naive']['per_target'][t]}/{n})" for c in conds]
-        lines.append(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
-    for c in conds:
-        lines.append(f"\n{c['condition']}: networks by number of targets reached (0..{len(c['targets'])}): "
-                     f"{c['trained']['targets_reached_per_network']} (naive "
-                     f"{c['naive']['targets_reached_per_network']})")
-    return "\n".join(lines)
