@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from jaxarm.viz.video import MuscleProjector
+from jaxarm.viz.arm_projection import MuscleProjector
 
 #: Tendon width at rest and added at full activation, m (MuJoCo draws a spatial tendon as capsules of this radius).
 TENDON_WIDTH_M = (0.0015, 0.005)
