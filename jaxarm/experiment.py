@@ -161,8 +161,8 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
 
 def write_records(run, trained_res, naive_res) -> dict:
     """``spikes.npz`` (the tests' and recorded epochs' spikes) and, for the musculoskeletal arm, ``muscles.npz``
-    (the tests' muscles) of a recording run (:mod:`jaxarm.record`); returns what results.json says about them."""
-    from jaxarm import record as rec_mod
+    (the tests' muscles) of a recording run (:mod:`jaxarm.recordfile`); returns what results.json says about them."""
+    from jaxarm import recordfile
     from jaxarm.network.populations import Populations
 
     net, task = run.config.network, run.config.task
@@ -180,24 +180,25 @@ def write_records(run, trained_res, naive_res) -> dict:
     group[pops.slice(net.spec.readout)] = pops.em_groups()
     group[pops.slice(net.spec.proprio)] = pops.p_groups()
     networks = run.recorded_networks()
-    earlier = rec_mod.earlier_windows(run.out / rec_mod.SPIKES_FILE, windows, seeds=run.seeds, networks=networks)
-    rec_mod.save_spikes(run.out / rec_mod.SPIKES_FILE, windows, seeds=run.seeds, networks=networks,
-                        dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=net.populations,
-                        pop_start=[pops.start[p] for p in net.populations],
-                        pop_stop=[pops.stop[p] for p in net.populations],
-                        group=group,
-                        capacity=run.record_capacity, config=run.record, arm=run.config.arm, earlier=earlier)
-    files = [rec_mod.SPIKES_FILE]
+    earlier = recordfile.earlier_windows(run.out / recordfile.SPIKES_FILE, windows, seeds=run.seeds,
+                                         networks=networks)
+    recordfile.save_spikes(run.out / recordfile.SPIKES_FILE, windows, seeds=run.seeds, networks=networks,
+                           dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=net.populations,
+                           pop_start=[pops.start[p] for p in net.populations],
+                           pop_stop=[pops.stop[p] for p in net.populations],
+                           group=group,
+                           capacity=run.record_capacity, config=run.record, arm=run.config.arm, earlier=earlier)
+    files = [recordfile.SPIKES_FILE]
     if run.config.arm == "musculoskeletal":
         from jaxarm.arm.musculoskeletal import GROUP_MUSCLES
 
         arm = run.fns.loop.arm
         groups = [next((g for g, names in enumerate(GROUP_MUSCLES) if m in names), -1) for m in arm.muscle_names]
-        if rec_mod.save_muscles(run.out / rec_mod.MUSCLES_FILE, {n: w["recording"] for n, w in windows.items()
-                                                                  if n in ("test", "naive_test")},
-                                seeds=run.seeds, networks=networks, muscle_names=arm.muscle_names, groups=groups,
-                                interval_ms=net.interface_ms):
-            files.append(rec_mod.MUSCLES_FILE)
+        if recordfile.save_muscles(run.out / recordfile.MUSCLES_FILE, {n: w["recording"] for n, w in windows.items()
+                                                                        if n in ("test", "naive_test")},
+                                   seeds=run.seeds, networks=networks, muscle_names=arm.muscle_names, groups=groups,
+                                   interval_ms=net.interface_ms):
+            files.append(recordfile.MUSCLES_FILE)
     spikes = {name: [int(c) for c in np.asarray(w["recording"].spikes.count)[networks]]
               for name, w in windows.items()}
     spikes |= {name: [int(c) for c in w["counts"].sum(axis=1)] for name, w in earlier.items()}

@@ -37,7 +37,7 @@ def _robot_log(path):
 
 
 def test_figures_writes_every_named_file_and_its_data_matches_the_record(run, tmp_path, capsys):
-    from jaxarm.record import SpikeFile
+    from jaxarm.recordfile import SpikeFile
 
     out = tmp_path / "fig"
     assert main(["figures", str(run), "--out", str(out), "--network", "1", "--grid", "--robot-log",

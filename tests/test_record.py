@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from jaxarm import record as rec_mod
+from jaxarm import recordfile
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.loop import LoopConfig
@@ -140,7 +141,7 @@ def test_train_and_test_commands_write_the_spike_file(tmp_path, capsys):
     res = json.loads((out / "results.json").read_text())["record"]
     assert res["windows"] == ["test", "naive_test", "epoch_1"] and res["files"] == ["spikes.npz"]
     assert res["capacity_spikes"]["test"] == 50 * 704 * 0.2
-    f = rec_mod.SpikeFile(out / "spikes.npz")
+    f = recordfile.SpikeFile(out / "spikes.npz")
     assert f.windows == res["windows"] and len(f) == 2
     for w in f.windows:
         lo, hi = f.span_ms(w)
@@ -158,14 +159,14 @@ def test_train_and_test_commands_write_the_spike_file(tmp_path, capsys):
                  str(out), "--no-progress", "--record-spikes", "--record-train-s", "0.05", "--record-epochs",
                  "1"]) == 0
     assert "epoch(s) 1 finished before this invocation" in capsys.readouterr().err
-    again = rec_mod.SpikeFile(out / "spikes.npz")
+    again = recordfile.SpikeFile(out / "spikes.npz")
     assert again.windows == f.windows
     assert json.loads((out / "results.json").read_text())["record"]["spikes"] == res["spikes"]
     for key in f.data:
         np.testing.assert_array_equal(again.data[key], f.data[key], err_msg=key)
     assert main(["test", "--from", str(out), "--test-s", "0.2", "--out", str(tmp_path / "t1"), "--record-spikes",
                  "--record-networks", "1"]) == 0
-    g = rec_mod.SpikeFile(tmp_path / "t1" / "spikes.npz")
+    g = recordfile.SpikeFile(tmp_path / "t1" / "spikes.npz")
     assert g.data["networks"].tolist() == [1] and g.seeds.tolist() == [f.seeds[1]]
     np.testing.assert_array_equal(g.spikes("test", 0)[1], f.spikes("test", 1)[1])   # the same networks, re-tested
     with pytest.raises(SystemExit):

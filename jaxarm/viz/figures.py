@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxarm.arm.base import GROUPS
-from jaxarm.record import MUSCLES_FILE, SPIKES_FILE, SpikeFile
+from jaxarm.recordfile import MUSCLES_FILE, SPIKES_FILE, SpikeFile
 from jaxarm.runfolder import DamagedFile, lookup, read_json, read_npz
 
 #: Muscle groups (jaxarm.arm.GROUPS order: shoulder extensors, shoulder flexors, elbow extensors, elbow flexors).
