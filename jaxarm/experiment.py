@@ -403,6 +403,9 @@ def _train_targets(ap, args, configs, mp, record) -> int:
             run = Run(cfg, args.networks, args.seed, out, mp, record=record)
         except ConfigError as e:
             ap.error(str(e))
+        if parallel.is_main_process():
+            print(parallel.padding_note(run.n, f"{run.n} networks", run.mesh.size, run.at_once,
+                                        jax.process_count(), ("--networks", lambda v: v, run.n)), flush=True)
         carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress,
                                                                 test_each_epoch=args.test_each_epoch)
         res = write_outputs(run, run.test(carry.trained), run.test(run.naive(), "naive test"), history, wall,
@@ -562,6 +565,11 @@ def test_main(argv: list[str] | None = None) -> int:
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task, learning=learning,
                      rule=rule)
     out = args.out or args.src / "test"
+    with runfolder.claim(out, "jaxarm test"):   # one writer per folder, as for jaxarm train
+        return _test_into(ap, args, meta, cfg, out, record, overrides)
+
+
+def _test_into(ap, args, meta, cfg, out, record, overrides) -> int:
     try:
         if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
             from jaxarm.run import stack_rows

@@ -337,6 +337,10 @@ def _lock_held_for(command: list[str]):
     return run
 
 
+def _test_into_busy(ws):
+    return _lock_held_for(["test", "--from", str(ws.reference())])(ws)
+
+
 def _different_run(ws):
     out = ws.copy_of_reference("other-run")
     before = snapshot(out)
@@ -561,6 +565,7 @@ CASES = [
     Case("`export --trajectory` a missing file",
          lambda ws: cli(["export", "--trajectory", str(ws.fresh("missing.csv")), "--to", "offline"]), 2,
          r"--trajectory .*missing\.csv: .*No such file", group="robot"),
+    Case("`test` writing into a folder in use", _test_into_busy, 2, BUSY, group="lock"),
 ]
 
 
