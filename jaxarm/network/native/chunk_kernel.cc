@@ -254,6 +254,10 @@ void cell_update(int64_t n, float* __restrict__ ampa, float* __restrict__ nmda, 
               *__restrict__ d_rr_first = c.d_rr_first;
   const int32_t* __restrict__ n_ref = c.n_ref;
   const float e_ampa = c.e_ampa, e_nmda = c.e_nmda, e_gaba = c.e_gaba;
+  // the scalars as locals too: read through `c` inside the loop they may alias the arrays written (c is not
+  // restrict), and the loop is vectorised only where the call is inlined
+  const float neg_inv_ampa = c.neg_inv_ampa, inv_gaba = c.inv_gaba, inv_ampa = c.inv_ampa, inv_nmda = c.inv_nmda,
+              neg_mg_slope = c.neg_mg_slope, mg_ratio = c.mg_ratio, vm_min = c.vm_min, vm_max = c.vm_max;
   // cell i reads and writes only element i of every array (GCC honours restrict on parameters only, and the
   // constants arrive in a struct)
 #pragma GCC ivdep
@@ -267,21 +271,21 @@ void cell_update(int64_t n, float* __restrict__ ampa, float* __restrict__ nmda, 
     const float ai = in[i], ni = in[n + i], pi = in[2 * n + i], di = in[3 * n + i];
     float ja, jp, jd;
     if constexpr (Seq) {
-      ja = (e_ampa - v) * -fastmath::expm1(ai * c.neg_inv_ampa);
-      jp = (v - e_gaba) * -fastmath::expm1(pi * c.inv_gaba);
-      jd = (v - e_gaba) * -fastmath::expm1(di * c.inv_gaba);
+      ja = (e_ampa - v) * -fastmath::expm1(ai * neg_inv_ampa);
+      jp = (v - e_gaba) * -fastmath::expm1(pi * inv_gaba);
+      jd = (v - e_gaba) * -fastmath::expm1(di * inv_gaba);
     } else {
-      ja = ai * (1.0f - v * c.inv_ampa);
-      const float gf = 1.0f - v * c.inv_gaba;
+      ja = ai * (1.0f - v * inv_ampa);
+      const float gf = 1.0f - v * inv_gaba;
       jp = pi * gf;
       jd = di * gf;
     }
-    const float block = 1.0f / (1.0f + fastmath::exp(c.neg_mg_slope * (rmp[i] + v)) * c.mg_ratio);
+    const float block = 1.0f / (1.0f + fastmath::exp(neg_mg_slope * (rmp[i] + v)) * mg_ratio);
     a = ai != 0.0f ? std::max(a + ja, 0.0f) : a;
-    b = (b < e_nmda && ni != 0.0f) ? b + ni * block * (1.0f - v * c.inv_nmda) : b;
+    b = (b < e_nmda && ni != 0.0f) ? b + ni * block * (1.0f - v * inv_nmda) : b;
     g = (pi != 0.0f && g > e_gaba) ? std::min(g - jp, 0.0f) : g;
     d = (di != 0.0f && d > e_gaba) ? std::min(d - jd, 0.0f) : d;
-    const float vm = std::min(std::max(rmp[i] + a + b + g + d + e, c.vm_min), c.vm_max);
+    const float vm = std::min(std::max(rmp[i] + a + b + g + d + e, vm_min), vm_max);
     bool spike = (sn >= n_ref[i]) & (vm > vth[i] + ex) & (vm <= vblock[i]);
     if constexpr (PerEvent)   // below threshold before this step's input, above Vblock after it: crossed
       spike |= (sn >= n_ref[i]) & (vm > vblock[i]) & (rmp[i] + v <= vth[i] + ex);
@@ -302,11 +306,17 @@ template <bool PerEvent>
 void cell_update(bool seq, bool on_event, int64_t n, float* ampa, float* nmda, float* gprox, float* gdist,
                  float* ahp, int32_t* since, float* excess, const float* in, const CellConstantsView& c,
                  uint8_t* spiked) {
-  auto run = [&](auto update) { update(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked); };
-  if (seq && !on_event) run(cell_update<PerEvent, true, false>);
-  else if (seq) run(cell_update<PerEvent, true, true>);
-  else if (!on_event) run(cell_update<PerEvent, false, false>);
-  else run(cell_update<PerEvent, false, true>);
+  // direct calls: passing the instantiations through a generic lambda (a function pointer) made the kernel 3.4x
+  // slower (2026-12-05, benchmarks/network.py at one network: 16 against 56 network-s per CPU-second)
+  if (seq && !on_event) {
+    cell_update<PerEvent, true, false>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  } else if (seq) {
+    cell_update<PerEvent, true, true>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  } else if (!on_event) {
+    cell_update<PerEvent, false, false>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  } else {
+    cell_update<PerEvent, false, true>(n, ampa, nmda, gprox, gdist, ahp, since, excess, in, c, spiked);
+  }
 }
 
 template <bool PerEvent>
