@@ -195,3 +195,29 @@ def test_population_rates_over_seconds_match_xla():
     for p in nx.config.spec.network_populations:
         x, n = counts["xla"][pops.slice(p)].sum(), counts["native"][pops.slice(p)].sum()
         assert x > 500 and abs(n - x) <= 0.05 * x, (p, x, n)
+
+
+@needs_native
+def test_native_kernel_keeps_its_speed_over_the_xla_kernel():
+    """A guard against a silent slowdown of the native kernel (2026-12-05: a rewrap that passed the cell update
+    through a generic lambda cost 3.4x, unnoticed for five hours). Machine load moves both kernels alike, so the
+    ratio of their CPU times (all threads) in one process is the measure: one network, 1 s after a warm-up of 1.5 s.
+    Measured 2026-12-05 on the project's 2-core machine: 15x (the slowed kernel: 4.5x, and 5.5x under load: this test failed on it)."""
+    import os
+    import time
+
+    nx, nn = pair()
+    wiring = nx.make_wiring(jax.random.key(2))
+    s0 = start(nx, jax.random.key(3))
+    cpu_s = {}
+    for net in (nx, nn):
+        run = jax.jit(lambda s, n, net=net: net.run(wiring, s, PARAMS, n, collect=False)[0], static_argnums=1)
+        jax.block_until_ready(run(s0, 2000))                     # compile, and the start-of-run volley
+        run(s0, 4000)
+        s = jax.block_until_ready(run(s0, 4000))
+        t = time.process_time()
+        jax.block_until_ready(run(s, 4000))
+        cpu_s[net.config.kernel] = time.process_time() - t
+    ratio = cpu_s["xla"] / cpu_s["native"]
+    assert ratio > 8, (f"the native kernel is only {ratio:.1f}x the XLA kernel's speed per CPU-second (15x when "
+                       f"measured; {os.cpu_count()} CPUs here): profile it (benchmarks/profile.py)")
