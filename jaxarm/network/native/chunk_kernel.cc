@@ -195,8 +195,33 @@ inline int64_t batch_offset(const View& v, const std::vector<int64_t>& idx) {
 // The vectorisable passes of a step, as functions of restrict-qualified arrays (so the compiler may vectorise).
 // N = #{k < kmax : u >= T_k}, every lane against every threshold (vectorised; skipping the lanes below T_0, a
 // few percent of which are not, measured slower: the second pass is scalar).
+// With the threshold count known at compile time the hash stays in a register against every threshold and the
+// lanes vectorise (one pass; a pass per threshold re-read and re-wrote the hashes and counts kmax times).
+template <int KMax>
+void noise_counts_fixed(int64_t lanes, uint32_t s, const uint32_t* __restrict__ lane_key,
+                        const uint32_t* __restrict__ thr, int32_t* __restrict__ cb) {
+  for (int64_t l = 0; l < lanes; ++l) {
+    const uint32_t u = hash32(lane_key[l] ^ s);
+    int32_t c = 0;
+#pragma GCC unroll 16
+    for (int k = 0; k < KMax; ++k) c += (u >= thr[k * lanes + l]) ? 1 : 0;
+    cb[l] = c;
+  }
+}
+
 void noise_counts(int64_t lanes, int64_t kmax, uint32_t s, const uint32_t* __restrict__ lane_key,
                   const uint32_t* __restrict__ thr, uint32_t* __restrict__ ub, int32_t* __restrict__ cb) {
+  switch (kmax) {
+    case 1: return noise_counts_fixed<1>(lanes, s, lane_key, thr, cb);
+    case 2: return noise_counts_fixed<2>(lanes, s, lane_key, thr, cb);
+    case 3: return noise_counts_fixed<3>(lanes, s, lane_key, thr, cb);
+    case 4: return noise_counts_fixed<4>(lanes, s, lane_key, thr, cb);
+    case 5: return noise_counts_fixed<5>(lanes, s, lane_key, thr, cb);
+    case 6: return noise_counts_fixed<6>(lanes, s, lane_key, thr, cb);
+    case 7: return noise_counts_fixed<7>(lanes, s, lane_key, thr, cb);
+    case 8: return noise_counts_fixed<8>(lanes, s, lane_key, thr, cb);
+    default: break;
+  }
   for (int64_t l = 0; l < lanes; ++l) {
     ub[l] = hash32(lane_key[l] ^ s);
     cb[l] = 0;
