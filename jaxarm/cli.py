@@ -121,16 +121,16 @@ SCALE_OUT_COMMANDS = ("train", "test", "evolve", "reproduce", "rerank")
 def _start_devices(name: str, argv: list[str]) -> int:
     """Set up this process's devices (and join the other processes) before the command's module is imported: some
     libraries (evosax) compute at import, after which JAX's devices are fixed. Returns an exit code on bad options."""
-    from jaxarm import parallel
+    from jaxarm import parallel_cli
     from jaxarm.config.validate import ConfigError
 
     # no abbreviations: this parser sees the command's other options too, and `--networks 30` is not
     # `--networks-at-once 30`
     ap = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
-    parallel.add_arguments(ap)
+    parallel_cli.add_arguments(ap)
     try:
         known, _ = ap.parse_known_args(argv)
-        parallel.start_from_arguments(known)
+        parallel_cli.start_from_arguments(known)
     except SystemExit as e:   # argparse already said what is wrong with the option
         return int(e.code or 2)
     except ConfigError as e:

@@ -31,7 +31,7 @@ import jax
 import numpy as np
 import sys
 
-from jaxarm import parallel, runfolder
+from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.analysis.reach import reach_metrics
 from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.validate import ConfigError
@@ -372,7 +372,7 @@ def train_main(argv: list[str] | None = None) -> int:
                     help="also test every network after every epoch: results.json's learning_curve (successes per "
                          "epoch, and per network the training seconds until its test first succeeded)")
     add_record_arguments(ap, train=True)
-    parallel.add_arguments(ap)
+    parallel_cli.add_arguments(ap)
     args = ap.parse_args(argv)
     try:
         base = preset_metaparams(args)
@@ -382,7 +382,7 @@ def train_main(argv: list[str] | None = None) -> int:
     if args.task == "centre-out-8":
         return _centre_out_main(ap, args, base)
     try:
-        parallel.start_from_arguments(args)
+        parallel_cli.start_from_arguments(args)
         configs = _configs(args)
         overrides = _parse_overrides(args.overrides)
         if "epochs" in overrides:
@@ -535,10 +535,10 @@ def test_main(argv: list[str] | None = None) -> int:
                          "re-seeds its noise identically at every run")
     _add_test_noise_option(ap)
     add_record_arguments(ap, train=False)
-    parallel.add_arguments(ap)
+    parallel_cli.add_arguments(ap)
     args = ap.parse_args(argv)
     try:
-        parallel.start_from_arguments(args)
+        parallel_cli.start_from_arguments(args)
         overrides = _parse_overrides(args.overrides)
         record = record_config(args)
     except ConfigError as e:

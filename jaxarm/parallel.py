@@ -8,7 +8,7 @@ gathers (fitness for a search's ``tell``, results at the end). A network's resul
 process computes it, nor on how many share its device, so every layout gives the same bits.
 
 Set-up, once per process and before JAX computes anything (:func:`start`; the command line's ``--devices``,
-``--coordinator``, ``--num-processes``, ``--process-id``, see :func:`add_arguments`):
+``--coordinator``, ``--num-processes``, ``--process-id``, see :mod:`jaxarm.parallel_cli`):
 
 * CPU: ``devices`` host devices per process (default: the cores this process may use, :func:`usable_cores`: its
   affinity mask, at most its cgroup CPU quota), each running one network kernel thread, so a command uses the whole
@@ -27,7 +27,6 @@ minutes of training; the operation is not yet found: docs/scaling.md, "Known lim
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import socket
@@ -311,33 +310,6 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
             _join(timeout)
 
 
-def add_arguments(ap: argparse.ArgumentParser) -> None:
-    """The scale-out options every batch command takes."""
-    g = ap.add_argument_group("devices and machines (default: every core of this machine)")
-    g.add_argument("--devices", type=int, default=None, metavar="N",
-                   help="CPU devices of this process, one network-kernel thread each (default: every usable core, "
-                        f"{usable_cores()} here); accelerators: all of them are used")
-    g.add_argument("--networks-at-once", type=int, default=None, metavar="K",
-                   help=f"networks each device steps together, the rest of its share after them (default: "
-                        f"{CPU_NETWORKS_AT_ONCE} on CPUs, where a small group stays in the caches; all on accelerators; "
-                        "0 = all); the same value gives the same bits on every layout")
-    g.add_argument("--coordinator", default=None, metavar="HOST:PORT",
-                   help="several processes (machines): process 0's address; give every process the same command with "
-                        "its own --process-id (not needed under SLURM or Open MPI, which JAX detects)")
-    g.add_argument("--num-processes", type=int, default=None, metavar="N", help="number of processes (with --coordinator)")
-    g.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1 (with --coordinator)")
-    g.add_argument("--coordinator-timeout", type=float, default=None, metavar="S",
-                   help=f"seconds to wait for every process to join (default {COORDINATOR_TIMEOUT_S:g}); then "
-                        "one line naming the address, exit status 2")
-
-
-def start_from_arguments(args) -> None:
-    """:func:`start` from the parsed options of :func:`add_arguments` (``--devices``, ``--coordinator``,
-    ``--num-processes``, ``--process-id``)."""
-    start(args.devices, args.coordinator, args.num_processes, args.process_id,
-          getattr(args, "networks_at_once", None), getattr(args, "coordinator_timeout", None))
-
-
 @lru_cache(maxsize=None)
 def _mesh(devices: tuple) -> Mesh:
     return Mesh(np.asarray(devices), (AXIS,), axis_types=(AxisType.Auto,))
@@ -482,6 +454,6 @@ def describe() -> dict:
             "processes": jax.process_count(), "device_kind": jax.devices()[0].device_kind}
 
 
-__all__ = ["AXIS", "BATCHED", "REPLICATED", "start", "add_arguments", "start_from_arguments", "mesh", "padded_size",
+__all__ = ["AXIS", "BATCHED", "REPLICATED", "start", "mesh", "padded_size",
            "sharded_map", "is_main_process", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe",
            "usable_cores", "cgroup_cpu_limit", "parse_cpu_max", "COORDINATOR_TIMEOUT_S", "group_span", "padding_note"]

@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "jaxarm"
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("foundation", ("jaxarm.config.validate", "jaxarm.cpu_arithmetic", "jaxarm.batching")),
     ("configuration", ("jaxarm.config",)),
-    ("devices and folders", ("jaxarm.parallel", "jaxarm.runfolder")),
+    ("devices and folders", ("jaxarm.parallel", "jaxarm.parallel_cli", "jaxarm.runfolder")),
     ("network, arm, task, analysis", ("jaxarm", "jaxarm.network", "jaxarm.arm", "jaxarm.task", "jaxarm.analysis",
                                       "jaxarm.record")),
     ("learning: the pieces", ("jaxarm.learning.metaparams", "jaxarm.learning.critic", "jaxarm.learning.stdp",

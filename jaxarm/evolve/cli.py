@@ -17,7 +17,7 @@ import argparse
 import json
 import sys
 
-from jaxarm import parallel, runfolder
+from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.arm.registry import ARMS
 from jaxarm.config.validate import ConfigError
 from jaxarm.task.registry import DEFAULT as DEFAULT_TASK, TASKS
@@ -93,14 +93,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-chunks", type=int, default=None, help="stop after this many chunks (resume later)")
     ap.add_argument("--list-fitness", action="store_true", help="list registered fitness functions and exit")
     ap.add_argument("--list-strategies", action="store_true", help="list evosax strategies and exit")
-    parallel.add_arguments(ap)
+    parallel_cli.add_arguments(ap)
     return ap
 
 
 def evolve_main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        parallel.start_from_arguments(args)
+        parallel_cli.start_from_arguments(args)
     except ConfigError as e:
         print(f"jaxarm evolve: {e}", file=sys.stderr)
         return 2

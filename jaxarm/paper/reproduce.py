@@ -39,7 +39,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxarm import parallel, runfolder
+from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.network import RUNTIME_FIELDS
 from jaxarm.config.validate import ConfigError
@@ -508,7 +508,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "check that a count does not depend on the step)")
     add_network_arguments(ap, "; every preset was searched on the paper's network")
     ap.add_argument("--no-progress", action="store_true")
-    parallel.add_arguments(ap)
+    parallel_cli.add_arguments(ap)
     ap.add_argument("--list-presets", action="store_true", help="list the presets, one per line, name first; exit")
     ap.add_argument("--all", action="store_true",
                     help="with --list-presets: also the archived presets of earlier searches (docs/searches.md)")
@@ -530,7 +530,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
-        parallel.start_from_arguments(args)
+        parallel_cli.start_from_arguments(args)
         if args.list_presets:
             for name, desc in preset_lib.available(args.preset_dir, archive=args.all).items():
                 print(f"{name}  {desc}")

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxarm import parallel, runfolder
+from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
@@ -298,7 +298,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--preset-dir", type=Path, default=preset_lib.PRESET_DIR,
                     help=f"where presets are read and written (default: the package's, {preset_lib.PRESET_DIR})")
     ap.add_argument("--no-progress", action="store_true")
-    parallel.add_arguments(ap)
+    parallel_cli.add_arguments(ap)
     return ap
 
 
@@ -317,7 +317,7 @@ def rerank_main(argv: list[str] | None = None) -> int:
                                   ("--out", args.out)) if v is None]
         if missing:
             ap.error(f"{', '.join(missing)} required (or --make-preset NAME --from-rerank DIR)")
-        parallel.start_from_arguments(args)
+        parallel_cli.start_from_arguments(args)
         pool = [p.strip() for p in args.pool.split(",") if p.strip()]
         with runfolder.claim(args.out, "jaxarm rerank"):
             table = rerank(args.arm, args.target, pool, args.out, seeds=args.seeds, first_seed=args.first_seed,
