@@ -6,7 +6,7 @@ import pytest
 
 from jaxarm.arm.base import hand_position
 from jaxarm.config.validate import ConfigError
-from jaxarm.task import (PAPER_TARGETS, TARGET_ANGLES_RAD, TaskConfig, first_entry_index, hand_target_distance,
+from jaxarm.task import (REACHING_TARGETS, TARGET_ANGLES_RAD, TaskConfig, first_entry_index, hand_target_distance,
                          reached, start_position, target_position, target_positions)
 
 
@@ -15,14 +15,14 @@ def test_paper_targets_match_spec_positions_and_distance():
     np.testing.assert_allclose(target_position("left"), [-0.0536, 0.3809], atol=1e-4)
     np.testing.assert_allclose(target_position("bottom"), [0.0976, 0.2296], atol=1e-4)
     np.testing.assert_allclose(start_position(), [0.0976, 0.3809], atol=1e-4)
-    for name in PAPER_TARGETS:
+    for name in REACHING_TARGETS:
         assert np.linalg.norm(target_position(name) - start_position()) == pytest.approx(0.1512, abs=5e-4)
 
 
 def test_targets_agree_with_traced_forward_kinematics():
     for name, q in TARGET_ANGLES_RAD.items():
         np.testing.assert_allclose(target_position(name), np.asarray(hand_position(jnp.asarray(q))), atol=1e-6)
-    assert target_positions(PAPER_TARGETS).shape == (2, 2)
+    assert target_positions(REACHING_TARGETS).shape == (2, 2)
     with pytest.raises(ConfigError, match="target"):
         target_position("middle")
 
@@ -77,7 +77,7 @@ def test_success_is_entering_the_circle():
 
 
 def test_success_vmaps_over_targets_and_trajectories():
-    targets = jnp.asarray(target_positions(PAPER_TARGETS))
+    targets = jnp.asarray(target_positions(REACHING_TARGETS))
     paths = jnp.stack([jnp.linspace(start_position(), targets[0], 11), jnp.full((11, 2), start_position())])
     d = jax.vmap(lambda p: jax.vmap(lambda tg: hand_target_distance(p, tg))(targets))(paths)  # (path, target, T)
     ok = jax.jit(reached)(d)

@@ -11,8 +11,9 @@ import numpy as np
 
 from jaxarm.analysis.reach import ReachMetrics
 
-#: Metrics the paper reports as mean (SD) over successful trajectories, with display units.
-PAPER_METRICS = {
+#: Per-trial reach metrics summarised as mean (SD) over successful trajectories (as the paper reports them), with
+#: display units.
+SUCCESS_METRICS = {
     "speed_before_m_s": "m/s",
     "speed_after_m_s": "m/s",
     "distance_after_m": "m",
@@ -41,8 +42,8 @@ def mean_sd(values, mask=None) -> dict:
 
 
 def summarize_reaches(metrics: ReachMetrics, extra: Mapping[str, np.ndarray] | None = None) -> dict:
-    """Summary of N trials: success count and rate, min/final distance over all trials, and the paper's metrics
-    (:data:`PAPER_METRICS`) over successful trials only.
+    """Summary of N trials: success count and rate, min/final distance over all trials, and the reach metrics
+    (:data:`SUCCESS_METRICS`) over successful trials only.
 
     metrics: a :class:`ReachMetrics` whose fields have leading shape (N,). extra: further per-trial arrays (e.g.
     ``{"dimensionless_jerk": ...}``) summarised over successful trials too.
@@ -56,7 +57,7 @@ def summarize_reaches(metrics: ReachMetrics, extra: Mapping[str, np.ndarray] | N
         "min_distance_m": mean_sd(metrics.min_distance_m),
         "final_distance_m": mean_sd(metrics.final_distance_m),
     }
-    for name in PAPER_METRICS:
+    for name in SUCCESS_METRICS:
         out[name] = mean_sd(getattr(metrics, name), success)
     for name, values in (extra or {}).items():
         out[name] = mean_sd(values, success)

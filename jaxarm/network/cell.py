@@ -45,9 +45,9 @@ from jaxarm.config.spec import SynapsePhysics
 from jaxarm.network import surrogate
 from jaxarm.network.populations import Populations
 
-#: The physics every cell shares (reversal potentials, Mg block, clamp, synaptic time constants) and the cell
-#: types' INTF6 parameters come from the spec (``NetworkSpec.physics``, ``NetworkSpec.cell_types``); the paper's:
-PAPER_PHYSICS = SynapsePhysics()
+# The physics every cell shares (reversal potentials, Mg block, clamp, synaptic time constants) and the cell types'
+# INTF6 parameters come from the spec (``NetworkSpec.physics``, ``NetworkSpec.cell_types``); where a function below
+# is called without them, it takes the spec's defaults (``SynapsePhysics()``).
 _SINCE_MAX = 2 ** 30
 
 
@@ -112,7 +112,7 @@ def init_cells(n: int) -> CellState:
                      steps_since_spike=jnp.full((n,), _SINCE_MAX, jnp.int32))
 
 
-def event_load(w, e_rev: float, max_jump_fraction: float = PAPER_PHYSICS.max_jump_fraction):
+def event_load(w, e_rev: float, max_jump_fraction: float = SynapsePhysics.max_jump_fraction):
     """Load of synaptic weight(s) ``w`` (mV) on a channel with reversal distance ``e_rev`` (65 for AMPA, 15 for
     GABA), for the sequential summation of events arriving in one step: ``-e_rev * log(1 - w/e_rev)``. Loads add;
     a step's summed load L gives the jump ``(e_rev -+ V) (1 - exp(-L / e_rev))``, which for one event is exactly
@@ -123,7 +123,7 @@ def event_load(w, e_rev: float, max_jump_fraction: float = PAPER_PHYSICS.max_jum
     return -e_rev * xp.log1p(-xp.minimum(xp.asarray(w, xp.float32) / e_rev, max_jump_fraction))
 
 
-def mg_block(v_abs, physics: SynapsePhysics = PAPER_PHYSICS):
+def mg_block(v_abs, physics: SynapsePhysics = SynapsePhysics()):
     """NMDA Mg-block factor of the absolute membrane potential (mV)."""
     return 1.0 / (1.0 + jnp.exp(-physics.mg_slope_per_mv * v_abs) * (physics.mg_mm / physics.mg0_mm))
 
@@ -131,7 +131,7 @@ def mg_block(v_abs, physics: SynapsePhysics = PAPER_PHYSICS):
 def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants,
               sequential: bool = False, on_event: bool = False, per_event_crossing: bool = False,
               surrogate_width_mv: float = 0.0, surrogate_scale: float = 1.0,
-              physics: SynapsePhysics = PAPER_PHYSICS):
+              physics: SynapsePhysics = SynapsePhysics()):
     """Advance every cell by one step and apply this step's input (summed weights, mV, each (n_cells,)).
 
     ``sequential``: the AMPA and GABA inputs are summed loads (:func:`event_load`) rather than summed weights, and
@@ -188,7 +188,7 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
     return CellState(ampa, nmda, gaba_prox, gaba_dist, ahp, excess, since), out
 
 
-def membrane_potential(s: CellState, c: CellConstants, physics: SynapsePhysics = PAPER_PHYSICS):
+def membrane_potential(s: CellState, c: CellConstants, physics: SynapsePhysics = SynapsePhysics()):
     """Vm in mV (RMP + components, clamped to [vm_min_mv, vm_max_mv], the paper's [-90, 0]), as the spike test
     sees it."""
     return jnp.clip(c.rmp + s.ampa + s.nmda + s.gaba_prox + s.gaba_dist + s.ahp, physics.vm_min_mv,

@@ -53,7 +53,7 @@ import jax.numpy as jnp
 
 from jaxarm.config.validate import ConfigError
 from jaxarm.config.spec import SynapsePhysics
-from jaxarm.network.cell import PAPER_PHYSICS, event_load
+from jaxarm.network.cell import event_load
 from jaxarm.network.wiring import DELAY_BITS, N_CHANNELS, GroupTables, Wiring
 
 #: ``pdope`` of an untagged synapse and last spike time of a cell that has not fired in this run, ms
@@ -99,7 +99,7 @@ class DeliveryShape(NamedTuple):
     n_plastic: int
     bookkeeping: bool
     sequential: bool = False     # AMPA/GABA weights enter the ring as loads (jaxarm.network.cell.event_load)
-    physics: SynapsePhysics = PAPER_PHYSICS   # reversal potentials and the jump cap of those loads
+    physics: SynapsePhysics = SynapsePhysics()   # reversal potentials and the jump cap of those loads
 
 
 def list_length(shape: DeliveryShape, g: int, n_networks: int) -> int:
@@ -286,7 +286,7 @@ def deliver_block(ring, pdope_ms, counters: Counters, spike_step, last_spike_ms,
 
 def deliver_p_window(ring, next_step, interval_steps, first_step, n_steps: int, wiring: Wiring, wgain, p_synapses: slice,
                      p_start_id: int, never: int, *, max_spikes: int, n_slots: int, n_cells: int,
-                     sequential: bool = False, physics: SynapsePhysics = PAPER_PHYSICS):
+                     sequential: bool = False, physics: SynapsePhysics = SynapsePhysics()):
     """Write the P -> ES input of every P spike in steps (first_step, first_step + n_steps] into the ring.
 
     ``next_step``/``interval_steps``: (n_P,) P train state at ``first_step`` (intervals do not change inside the

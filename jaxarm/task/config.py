@@ -30,8 +30,9 @@ TARGET_ANGLES_RAD: dict[str, tuple[float, float]] = {
     "left-bottom": (0.12116826, 1.78758638),
     "right-bottom": (0.67440973, 2.09186399),
 }
-#: The two targets of the paper.
-PAPER_TARGETS = ("left", "bottom")
+#: The reaching task's targets unless told otherwise (``jaxarm.task.registry.TASKS["reaching"]``): the two the
+#: paper reports.
+REACHING_TARGETS = ("left", "bottom")
 #: Choices of TaskConfig.test_em_noise_events.
 TEST_EM_NOISE_EVENTS = ("unlimited", "netstim")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from jaxarm.task.centre_out import CENTRE_OUT_8, CentreOut
-from jaxarm.task.config import PAPER_TARGETS, TaskConfig
+from jaxarm.task.config import REACHING_TARGETS, TaskConfig
 
 
 class Task(NamedTuple):
@@ -19,7 +19,7 @@ class Task(NamedTuple):
 
 #: name -> task; the first is the default.
 TASKS = {
-    "reaching": Task(TaskConfig, "one target per network, the paper's task", PAPER_TARGETS, "reaching"),
+    "reaching": Task(TaskConfig, "one target per network, the paper's task", REACHING_TARGETS, "reaching"),
     "centre-out-8": Task(CentreOut, "the original's eight centre-out targets from one network, cycled epoch by epoch, "
                                     "with a target code; every network tested on every target", CENTRE_OUT_8,
                          "centre-out"),
