@@ -278,8 +278,20 @@ def test_babbling_epoch_restart_and_test_noise():
     np.testing.assert_allclose(np.asarray(em_noise_rates_in_test(MP)), 99.01, rtol=1e-6)
     with pytest.raises(ConfigError, match="BabblingConfig.variant"):
         BabblingConfig(variant="random")
-    with pytest.raises(ConfigError, match="BabblingConfig.paper_max_dt_ms"):
-        BabblingConfig(paper_max_dt_ms=50.0)
+    with pytest.raises(ConfigError, match="BabblingConfig.max_dt_ms"):
+        BabblingConfig(max_dt_ms=50.0)
+
+
+def test_a_rule_record_with_the_former_babbling_field_name_reads():
+    # BabblingConfig.paper_max_dt_ms became max_dt_ms: a run folder's learning record written before still reads
+    from jaxarm.learning.registry import rule_from_meta
+    from jaxarm.learning.rstdp import RSTDPConfig
+
+    old = {"learning": {"rule": "rstdp", "babbling": {"variant": "paper", "min_dt_ms": 100.0, "paper_max_dt_ms": 800.0,
+                                                       "initial_dt_ms": 1000.0, "initial_rate_hz": 200.0,
+                                                       "off_rate_hz": 50.0}, "plasticity": False}}
+    assert rule_from_meta(old) == ("rstdp", RSTDPConfig(babbling=BabblingConfig(variant="paper", max_dt_ms=800.0),
+                                                        plasticity=False))
 
 
 # ---- metaparameters -------------------------------------------------------------------------------------------

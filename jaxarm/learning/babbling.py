@@ -20,7 +20,7 @@ The original seeds its draws with Random.ACG(inputseed + iepoch + t); we use an 
 ``jax.random.fold_in(epoch_key, step)``), so the sequence differs from NEURON's but is deterministic for a key.
 
 The paper's description ("one muscle group at a time ... max 1.5 s") is ``BabblingConfig(variant="paper")``:
-single groups only, durations ~ U(min_dt_ms, paper_max_dt_ms) = U(100, 1500) ms (the paper gives no minimum; we keep
+single groups only, durations ~ U(min_dt_ms, max_dt_ms) = U(100, 1500) ms (the paper gives no minimum; we keep
 the code's 100 ms).
 
 Muscle groups (rates order): 0 shoulder extensors, 1 shoulder flexors, 2 elbow extensors, 3 elbow flexors
@@ -53,9 +53,10 @@ class BabblingConfig:
 
     Attributes:
         variant: "code" (singles and pairs, U(min_dt_ms, randomMuscleDTmax)) or "paper" (single groups,
-            U(min_dt_ms, paper_max_dt_ms)).
+            U(min_dt_ms, max_dt_ms)).
         min_dt_ms: lower end of the duration distribution, ms (code: 100).
-        paper_max_dt_ms: upper end in the "paper" variant, ms (paper: 1.5 s).
+        max_dt_ms: upper end of the durations in the "paper" variant, ms (paper: 1.5 s); the "code" variant takes
+            it from the metaparameters (``random_muscle_dt_max_ms``).
         initial_dt_ms: change_dt before the first draw, ms (code: 1000).
         initial_rate_hz: EM AMPA noise before the first RL update of the first epoch, Hz (code: 200).
         off_rate_hz: EM AMPA noise of groups not being babbled, Hz (EMNoiseRateMin = 50).
@@ -63,15 +64,19 @@ class BabblingConfig:
 
     variant: str = "code"
     min_dt_ms: float = 100.0
-    paper_max_dt_ms: float = 1500.0
+    max_dt_ms: float = 1500.0
     initial_dt_ms: float = 1000.0
     initial_rate_hz: float = 200.0
     off_rate_hz: float = 50.0
 
+    #: Former field names -> current ones: a run folder's record that uses them still reads
+    #: (:func:`jaxarm.learning.rule.config_from_dict`).
+    RENAMED_FIELDS = {"paper_max_dt_ms": "max_dt_ms"}
+
     def __post_init__(self):
         check_choice(self, "variant", ("code", "paper"))
         check_range(self, "min_dt_ms", 0.0, 1e5)
-        check_range(self, "paper_max_dt_ms", self.min_dt_ms, 1e5, lo_open=True)
+        check_range(self, "max_dt_ms", self.min_dt_ms, 1e5, lo_open=True)
         check_range(self, "initial_dt_ms", 0.0, 1e5)
         check_range(self, "initial_rate_hz", 0.0, 1e4)
         check_range(self, "off_rate_hz", 0.0, 1e4)
@@ -124,7 +129,7 @@ def babble(key, state: BabblingState, t_ms, mp, config: BabblingConfig = Babblin
     u_pattern = jax.random.uniform(k_pattern, dtype=jnp.float32)
     n_patterns = EXPLORE_PATTERNS.shape[0]
     if config.variant == "paper":
-        new_dt = config.min_dt_ms + u_dt * (config.paper_max_dt_ms - config.min_dt_ms)
+        new_dt = config.min_dt_ms + u_dt * (config.max_dt_ms - config.min_dt_ms)
         new_pattern = jnp.minimum(jnp.floor(u_pattern * N_GROUPS), N_GROUPS - 1).astype(jnp.int32)
     else:
         dt_max = jnp.asarray(mp.random_muscle_dt_max_ms, jnp.float32)

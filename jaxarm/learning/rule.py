@@ -90,7 +90,11 @@ class LearningRule:
 
 
 def config_from_dict(cls: type, values: dict):
-    """A configuration dataclass from its :func:`dataclasses.asdict` (a run folder's JSON), nested ones included."""
+    """A configuration dataclass from its :func:`dataclasses.asdict` (a run folder's JSON), nested ones included. A
+    field renamed since the record was written is read under its new name (the class's ``RENAMED_FIELDS``, former
+    name -> current one)."""
     hints = typing.get_type_hints(cls)
+    renamed = getattr(cls, "RENAMED_FIELDS", {})
+    values = {renamed.get(k, k): v for k, v in values.items()}
     return cls(**{k: config_from_dict(hints[k], v) if isinstance(v, dict) and dataclasses.is_dataclass(hints[k])
                   else v for k, v in values.items()})
