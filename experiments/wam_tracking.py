@@ -181,11 +181,11 @@ def main(argv=None) -> int:
         r, log = run_seed(seed, args.duration, config, traj)
         per_seed.append(r)
         if args.figures and i == 0:
-            from jaxarm.robot.figures import fig9_hand_xy, fig10_jerk
+            from jaxarm.robot.figures import hand_xy_figure, jerk_box_figure
 
-            fig9_hand_xy(log.columns(), args.figures / "wam_fig9_hand_xy.png",
-                         title=f"{label}, simulated WAM")
-            fig10_jerk(log.columns(), args.figures / "wam_fig10_jerk.png")
+            hand_xy_figure(log.columns(), args.figures / "wam_fig9_hand_xy.png",
+                           title=f"{label}, simulated WAM")
+            jerk_box_figure(log.columns(), args.figures / "wam_fig10_jerk.png")
     result = {
         "command": "python experiments/wam_tracking.py " + " ".join(argv if argv is not None else []),
         "trajectory": (f"network PRNGKey(SEED), preset {args.network}, {args.arm} arm, {args.target} target: the first "

@@ -14,7 +14,7 @@ Outputs in ``--out`` (one subfolder per target when several are given):
 per-epoch rates and weights averaged over networks, the full configuration), ``history.npz`` (the same per-epoch
 rates, gains, distances and critic counts for every network: arrays (epochs, networks, ...)), ``trajectories.npz``
 (t, q, hand, u, distance for the trained and naive networks), ``checkpoints/`` (orbax: wiring, learned gains, babbling state) and ``reach.png`` (hand paths
-and velocity profiles, trained vs naive, in the style of the paper's Fig. 6). With ``--record-spikes``: ``spikes.npz``
+and velocity profiles, trained vs naive, in the paper's layout). With ``--record-spikes``: ``spikes.npz``
 (every cell's spikes in the tests, and with ``--record-train-s`` in the last seconds of chosen epochs;
 :mod:`jaxarm.record`) and, for the musculoskeletal arm, ``muscles.npz``; ``jaxarm figures`` and ``jaxarm video``
 draw them.
@@ -253,7 +253,7 @@ def _jsonable(x):
 
 
 def plot_reach(path, t, hand, naive_hand, target, radius, title):
-    """Hand paths and velocity profiles, trained vs naive (the paper's Fig. 6 layout)."""
+    """Hand paths and velocity profiles, trained vs naive (the paper's layout)."""
     import matplotlib
 
     if "matplotlib.pyplot" not in sys.modules:   # a notebook's own backend stays (a switch closes its figures)

@@ -10,10 +10,10 @@ import pytest
 from jaxarm.cli import main
 
 #: Every file `jaxarm figures --grid --robot-log` writes for a simple-arm run recorded with --record-spikes.
-SIMPLE_FILES = ("fig5_raster.png", "fig5_raster.npz", "rates.png", "rates.csv", "rates_epochs.csv",
-                "fig5_raster_grid.png", "fig5_raster_grid.npz", "fig6_reach.png", "fig6_reach.npz",
-                "fig6_reach_grid.png", "fig6_reach_grid.npz", "fig7_jerk.png", "fig7_jerk.csv", "fig7_jerk.npz",
-                "fig9_robot.png", "fig9_robot.npz", "fig10_robot.png", "fig10_robot.json", "figures.json")
+SIMPLE_FILES = ("raster.png", "raster.npz", "rates.png", "rates.csv", "rates_epochs.csv",
+                "raster_grid.png", "raster_grid.npz", "reach_paths.png", "reach_paths.npz",
+                "reach_paths_grid.png", "reach_paths_grid.npz", "jerk_box.png", "jerk_box.csv", "jerk_box.npz",
+                "robot_hand_xy.png", "robot_hand_xy.npz", "robot_jerk.png", "robot_jerk.json", "figures.json")
 
 
 @pytest.fixture(scope="module")
@@ -58,13 +58,32 @@ def test_figures_writes_every_named_file_and_its_data_matches_the_record(run, tm
         total = sum(float(r[f"{pop}_hz"]) * n_cells * (float(r["t_stop_ms"]) - float(r["t_start_ms"])) / 1000
                     for r in rows)
         assert total == pytest.approx(counts[f.pop_start[pop]:f.pop_stop[pop]].sum(), abs=1e-3)
-    raster = np.load(out / "fig5_raster.npz")
+    raster = np.load(out / "raster.npz")
     assert len(raster["t_ms"]) == counts.sum() and int(raster["seed"]) == int(f.seeds[1])
-    # P at the top of the raster, IML at the bottom (the paper's Fig. 5 order)
+    # P at the top of the raster, IML at the bottom (the paper's order)
     assert raster["row"][raster["cell"] >= f.pop_start["P"]].max() < 192
-    jerk = list(csv.DictReader(open(out / "fig7_jerk.csv")))
+    jerk = list(csv.DictReader(open(out / "jerk_box.csv")))
     assert [int(r["seed"]) for r in jerk] == f.seeds.tolist()
-    assert "fig9_robot.png" in capsys.readouterr().out
+    assert "robot_hand_xy.png" in capsys.readouterr().out
+
+
+def test_the_paper_figure_numbers_live_in_jaxarm_paper():
+    """The figure code names its figures for what they draw; jaxarm.paper.figures maps the paper's numbers to them."""
+    import re
+    from pathlib import Path
+
+    from jaxarm.paper.figures import FIGURES
+    from jaxarm.robot import figures as robot_figures
+    from jaxarm.viz import figures as run_figures
+
+    assert sorted(FIGURES) == [5, 6, 7, 9, 10]
+    viz = Path(run_figures.__file__).read_text()
+    for number, figure in FIGURES.items():
+        assert figure.draw.__module__ in (run_figures.__name__, robot_figures.__name__), number
+        assert f'written["{figure.name}"]' in viz, figure.name       # its entry in figures.json
+    for module in (run_figures, robot_figures):
+        text = Path(module.__file__).read_text()
+        assert not re.search(r"\bfig_?\d|\bFigs?\. ?\d", text), module.__name__
 
 
 def test_figures_without_a_spike_record_draws_the_rest_and_says_how_to_record(run, tmp_path, capsys):
@@ -74,8 +93,8 @@ def test_figures_without_a_spike_record_draws_the_rest_and_says_how_to_record(ru
     shutil.copytree(run, bare, ignore=shutil.ignore_patterns("spikes.npz", "checkpoints"))
     assert main(["figures", str(bare), "--out", str(tmp_path / "f")]) == 0
     err = capsys.readouterr().err
-    assert "skipped fig5_raster: no spikes.npz" in err and "--record-spikes" in err
-    assert (tmp_path / "f" / "fig6_reach.png").is_file() and not (tmp_path / "f" / "fig5_raster.png").exists()
+    assert "skipped raster: no spikes.npz" in err and "--record-spikes" in err
+    assert (tmp_path / "f" / "reach_paths.png").is_file() and not (tmp_path / "f" / "raster.png").exists()
     for argv, msg in (([str(run), "--network", "2"], "--network 2: the run has 2 networks (0..1)"),
                       ([str(tmp_path / "nowhere")], "no results.json and trajectories.npz"),
                       ([str(run), "--window", "epoch_9"], "no window 'epoch_9'")):

@@ -241,7 +241,8 @@ def export_main(argv: list[str]) -> int:
     g = p.add_argument_group("offline (--to offline)")
     g.add_argument("--log", type=Path, default=None, metavar="FILE.csv", help="500 Hz CSV log")
     g.add_argument("--report", type=Path, default=None, metavar="FILE.json", help="tracking metrics (JSON)")
-    g.add_argument("--figures", type=Path, default=None, metavar="DIR", help="write Fig. 9/10-style PNGs here")
+    g.add_argument("--figures", type=Path, default=None, metavar="DIR",
+                   help="write the robot following the virtual arm here: hand_xy.png, jerk_box.png")
     g.add_argument("--rosbag2", type=Path, default=None, metavar="DIR",
                    help="also write a rosbag2 (MCAP) with the trajectory, the packets and the simulated robot's "
                         "joint states at 500 Hz")
@@ -306,11 +307,11 @@ def export_main(argv: list[str]) -> int:
         if args.report:
             _write_json(p, "--report", args.report, report)
         if args.figures:
-            from jaxarm.robot.figures import fig9_hand_xy, fig10_jerk
+            from jaxarm.robot.figures import hand_xy_figure, jerk_box_figure
 
             cols = log.columns()
-            fig9_hand_xy(cols, args.figures / "fig9_hand_xy.png")
-            fig10_jerk(cols, args.figures / "fig10_jerk.png")
+            hand_xy_figure(cols, args.figures / "hand_xy.png")
+            jerk_box_figure(cols, args.figures / "jerk_box.png")
         out = {"simulation": log.summary(), "tracking": report}
         if args.rosbag2:
             out["rosbag2"] = _write_bag(p, "--rosbag2", args.rosbag2, traj, config, jitter, timing, args, names,

@@ -1,8 +1,9 @@
-"""Figures in the style of the paper's Figs. 9 and 10 (matplotlib, Agg backend, written to files).
+"""The robot following the virtual arm, drawn (matplotlib, Agg backend, written to files); the paper's figures they
+match are :data:`jaxarm.paper.figures.FIGURES`.
 
-* :func:`fig9_hand_xy`: hand X and Y over time, the virtual arm's trajectory as received at the robot (red) and
-  the robot's (blue), both on the robot's clock (paper Fig. 9C-D).
-* :func:`fig10_jerk`: (A) box plots of the jerk magnitude of the virtual and robot hand trajectories (log scale;
+* :func:`hand_xy_figure`: hand X and Y over time, the virtual arm's trajectory as received at the robot (red) and
+  the robot's (blue), both on the robot's clock.
+* :func:`jerk_box_figure`: (A) box plots of the jerk magnitude of the virtual and robot hand trajectories (log scale;
   points/outliers in the labels, as the paper's caption gives them); (B) the dimensionless jerk of each.
 """
 from __future__ import annotations
@@ -23,8 +24,9 @@ def _plt():
     return plt
 
 
-def fig9_hand_xy(log: dict, path: str | Path, title: str = "virtual (received) vs robot") -> Path:
-    """Write the Fig. 9-style plot of ``log`` (a log dict) to ``path``; return the path."""
+def hand_xy_figure(log: dict, path: str | Path, title: str = "virtual (received) vs robot") -> Path:
+    """Write the hand X and Y over time of ``log`` (a log dict), virtual arm and robot, to ``path``; return the
+    path."""
     plt = _plt()
     s = signals(log)
     hv, hr = hand_xy(s["target"]), hand_xy(s["robot"])
@@ -44,8 +46,9 @@ def fig9_hand_xy(log: dict, path: str | Path, title: str = "virtual (received) v
     return path
 
 
-def fig10_jerk(log: dict, path: str | Path) -> Path:
-    """Write the Fig. 10-style jerk comparison of ``log`` to ``path``; return the path."""
+def jerk_box_figure(log: dict, path: str | Path) -> Path:
+    """Write the jerk of ``log``'s virtual arm and robot (box plots of the jerk magnitude, dimensionless jerk) to
+    ``path``; return the path."""
     plt = _plt()
     s = signals(log)
     t, new = s["t"], s["new"]

@@ -1,22 +1,23 @@
-"""``jaxarm figures RUN --out DIR``: the paper's figures from a run folder, each a PNG beside its data.
+"""``jaxarm figures RUN --out DIR``: the figures of a run folder, each a PNG beside its data.
 
-Files (named by figure; ``figures.json`` in DIR lists what was written and what was skipped, and why):
+Files (named for what they draw; ``figures.json`` in DIR lists what was written and what was skipped, and why; which
+of them are the paper's figures is :data:`jaxarm.paper.figures.FIGURES`):
 
-* ``fig5_raster.png`` / ``.npz``: one network's spikes in a recorded window (``--window``, default the test) in
-  the bands of the paper's Fig. 5, top to bottom P, ES, IS, ISL, EM, IM, IML; P and EM cells sorted and coloured by
-  muscle group; below, the joint angles and the EM readout (the four excitations sent to the arm). Needs
-  ``spikes.npz`` (``--record-spikes``).
+* ``raster.png`` / ``.npz``: one network's spikes in a recorded window (``--window``, default the test) in bands,
+  top to bottom P, ES, IS, ISL, EM, IM, IML (the paper's layout); P and EM cells sorted and coloured by muscle group;
+  below, the joint angles and the EM readout (the four excitations sent to the arm). Needs ``spikes.npz``
+  (``--record-spikes``).
 * ``rates.png`` / ``rates.csv`` (+ ``rates_epochs.csv``): population rates over the window in ``--bin-ms`` bins
   (spikes per cell per second; the network's and the mean over recorded networks), and the per-epoch rates of the
   last 10 s of every training epoch (``history.npz``).
-* ``fig6_reach.png`` / ``.npz``: hand paths and speeds in the test, trained vs naive, every network.
-* ``fig7_jerk.png`` / ``.csv`` / ``.npz``: jerk magnitude of every test sample (box plots, trained vs naive) and
+* ``reach_paths.png`` / ``.npz``: hand paths and speeds in the test, trained vs naive, every network.
+* ``jerk_box.png`` / ``.csv`` / ``.npz``: jerk magnitude of every test sample (box plots, trained vs naive) and
   each network's dimensionless jerk (:mod:`jaxarm.analysis.jerk`).
 * ``muscles.png`` / ``.npz``: the musculoskeletal arm's 22 activations, tendon forces and fibre lengths in the
   test, coloured by the group that drives them (needs ``muscles.npz``).
-* ``fig9_robot.png`` / ``.npz`` and ``fig10_robot.png`` / ``.json``, with ``--robot-log`` (a ``jaxarm wam-sim``
+* ``robot_hand_xy.png`` / ``.npz`` and ``robot_jerk.png`` / ``.json``, with ``--robot-log`` (a ``jaxarm wam-sim``
   CSV log): hand X/Y of the virtual arm and the robot, and their jerk (:mod:`jaxarm.robot.figures`).
-* ``--grid``: ``fig5_raster_grid`` and ``fig6_reach_grid`` (PNG + NPZ), one panel per network.
+* ``--grid``: ``raster_grid`` and ``reach_paths_grid`` (PNG + NPZ), one panel per network.
 """
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ TRAJECTORY_KEYS = ("t", "q", "hand", "naive_q", "naive_hand", "seeds")
 
 
 def band_order(f: SpikeFile) -> tuple[str, ...]:
-    """Raster bands, top to bottom, as the paper's Fig. 5: the generator population (P, last in id order) on top,
+    """Raster bands, top to bottom, in the paper's layout: the generator population (P, last in id order) on top,
     then the network populations in id order (the paper's ES, IS, ISL, EM, IM, IML)."""
     return (f.populations[-1],) + tuple(f.populations[:-1])
 
@@ -190,7 +191,7 @@ def group_legend(ax, **kw):
     ax.legend(handles, [g.replace("_", " ") for g in GROUPS], **kw)
 
 
-def fig5_raster(run: RunFolder, out: Path, network: int, window: str, dpi: int) -> list[Path]:
+def raster_figure(run: RunFolder, out: Path, network: int, window: str, dpi: int) -> list[Path]:
     f = run.spikes
     r = f.row_of(network)
     t_ms, cell = f.spikes(window, r)
@@ -216,14 +217,14 @@ def fig5_raster(run: RunFolder, out: Path, network: int, window: str, dpi: int) 
     axu.set_xlim(lo / 1000.0, hi / 1000.0)
     fig.tight_layout()
     row, _, bands = layout
-    np.savez_compressed(out / "fig5_raster.npz", t_ms=t_ms, cell=cell, row=row[cell], group=f.group[cell],
+    np.savez_compressed(out / "raster.npz", t_ms=t_ms, cell=cell, row=row[cell], group=f.group[cell],
                         bands=np.asarray(list(bands)), band_rows=np.asarray(list(bands.values())),
                         t_arm_ms=f.get(window, "t_ms"), q_rad=q, u=u, seed=f.seeds[r], network=network,
                         window=window)
-    return [_save(fig, out / "fig5_raster.png", dpi), out / "fig5_raster.npz"]
+    return [_save(fig, out / "raster.png", dpi), out / "raster.npz"]
 
 
-def fig5_raster_grid(run: RunFolder, out: Path, window: str, dpi: int) -> list[Path]:
+def raster_grid_figure(run: RunFolder, out: Path, window: str, dpi: int) -> list[Path]:
     f = run.spikes
     layout = cell_layout(f)
     n = len(f)
@@ -242,9 +243,9 @@ def fig5_raster_grid(run: RunFolder, out: Path, window: str, dpi: int) -> list[P
         data[f"t_ms_{r}"], data[f"cell_{r}"] = t_ms, cell
     fig.suptitle(f"{run.label}: {window.replace('_', ' ')}")
     fig.tight_layout()
-    np.savez_compressed(out / "fig5_raster_grid.npz", seeds=f.seeds, networks=f.data["networks"], window=window,
+    np.savez_compressed(out / "raster_grid.npz", seeds=f.seeds, networks=f.data["networks"], window=window,
                         **data)
-    return [_save(fig, out / "fig5_raster_grid.png", dpi), out / "fig5_raster_grid.npz"]
+    return [_save(fig, out / "raster_grid.png", dpi), out / "raster_grid.npz"]
 
 
 # -- rates --------------------------------------------------------------------------------------------------------
@@ -310,19 +311,19 @@ def rates_figure(run: RunFolder, out: Path, network: int, window: str, bin_ms: f
 
 # -- reaching -----------------------------------------------------------------------------------------------------
 
-def fig6_reach(run: RunFolder, out: Path, dpi: int) -> list[Path]:
+def reach_paths_figure(run: RunFolder, out: Path, dpi: int) -> list[Path]:
     from jaxarm.experiment import plot_reach
 
     t, hand, naive = run.traj["t"], run.traj["hand"], run.traj["naive_hand"]
-    plot_reach(out / "fig6_reach.png", t, hand, naive, run.target_m, run.radius_m, run.label)
+    plot_reach(out / "reach_paths.png", t, hand, naive, run.target_m, run.radius_m, run.label)
     speed = np.linalg.norm(np.diff(hand, axis=1), axis=-1) / run.dt_s
     naive_speed = np.linalg.norm(np.diff(naive, axis=1), axis=-1) / run.dt_s
-    np.savez_compressed(out / "fig6_reach.npz", t_s=t, hand_m=hand, naive_hand_m=naive, speed_m_s=speed,
+    np.savez_compressed(out / "reach_paths.npz", t_s=t, hand_m=hand, naive_hand_m=naive, speed_m_s=speed,
                         naive_speed_m_s=naive_speed, target_m=run.target_m, radius_m=run.radius_m, seeds=run.seeds)
-    return [out / "fig6_reach.png", out / "fig6_reach.npz"]
+    return [out / "reach_paths.png", out / "reach_paths.npz"]
 
 
-def fig6_reach_grid(run: RunFolder, out: Path, dpi: int) -> list[Path]:
+def reach_paths_grid_figure(run: RunFolder, out: Path, dpi: int) -> list[Path]:
     hand, naive = run.traj["hand"], run.traj["naive_hand"]
     cols = math.ceil(math.sqrt(run.n))
     rows = math.ceil(run.n / cols)
@@ -341,12 +342,12 @@ def fig6_reach_grid(run: RunFolder, out: Path, dpi: int) -> list[Path]:
         ax.set_aspect("equal")
     fig.suptitle(f"{run.label}: hand paths, trained (blue) vs naive (grey), cm")
     fig.tight_layout()
-    np.savez_compressed(out / "fig6_reach_grid.npz", hand_m=hand, naive_hand_m=naive, min_distance_m=dist.min(axis=1),
+    np.savez_compressed(out / "reach_paths_grid.npz", hand_m=hand, naive_hand_m=naive, min_distance_m=dist.min(axis=1),
                         target_m=run.target_m, seeds=run.seeds)
-    return [_save(fig, out / "fig6_reach_grid.png", dpi), out / "fig6_reach_grid.npz"]
+    return [_save(fig, out / "reach_paths_grid.png", dpi), out / "reach_paths_grid.npz"]
 
 
-def fig7_jerk(run: RunFolder, out: Path, dpi: int) -> list[Path]:
+def jerk_box_figure(run: RunFolder, out: Path, dpi: int) -> list[Path]:
     from jaxarm.analysis.jerk import dimensionless_jerk, jerk_magnitude, path_length
 
     hand, naive, dt = run.traj["hand"], run.traj["naive_hand"], run.dt_s
@@ -374,12 +375,12 @@ def fig7_jerk(run: RunFolder, out: Path, dpi: int) -> list[Path]:
     rows = [[int(s), float(dlj["trained"][k]), float(dlj["naive"][k]), float(length["trained"][k]),
              float(length["naive"][k]), float(np.median(mag["trained"][k])), float(np.median(mag["naive"][k]))]
             for k, s in enumerate(run.seeds)]
-    _write_csv(out / "fig7_jerk.csv", ["seed", "dlj_trained", "dlj_naive", "path_length_trained_m",
+    _write_csv(out / "jerk_box.csv", ["seed", "dlj_trained", "dlj_naive", "path_length_trained_m",
                                        "path_length_naive_m", "median_jerk_trained_m_s3", "median_jerk_naive_m_s3"],
                rows)
-    np.savez_compressed(out / "fig7_jerk.npz", jerk_trained_m_s3=mag["trained"], jerk_naive_m_s3=mag["naive"],
+    np.savez_compressed(out / "jerk_box.npz", jerk_trained_m_s3=mag["trained"], jerk_naive_m_s3=mag["naive"],
                         dlj_trained=dlj["trained"], dlj_naive=dlj["naive"], dt_s=dt, seeds=run.seeds)
-    return [_save(fig, out / "fig7_jerk.png", dpi), out / "fig7_jerk.csv", out / "fig7_jerk.npz"]
+    return [_save(fig, out / "jerk_box.png", dpi), out / "jerk_box.csv", out / "jerk_box.npz"]
 
 
 # -- muscles ------------------------------------------------------------------------------------------------------
@@ -423,13 +424,13 @@ def robot_figures(log_path: Path, out: Path) -> list[Path]:
 
     log = rm.load_log(log_path)
     s = rm.signals(log)
-    rf.fig9_hand_xy(log, out / "fig9_robot.png")
-    np.savez_compressed(out / "fig9_robot.npz", t_s=s["t"], virtual_hand_m=rm.hand_xy(s["target"]),
+    rf.hand_xy_figure(log, out / "robot_hand_xy.png")
+    np.savez_compressed(out / "robot_hand_xy.npz", t_s=s["t"], virtual_hand_m=rm.hand_xy(s["target"]),
                         robot_hand_m=rm.hand_xy(s["robot"]), new_target=s["new"])
-    rf.fig10_jerk(log, out / "fig10_robot.png")
+    rf.jerk_box_figure(log, out / "robot_jerk.png")
     report = rm.tracking_report(log)
-    (out / "fig10_robot.json").write_text(json.dumps(report, indent=1, default=float))
-    return [out / "fig9_robot.png", out / "fig9_robot.npz", out / "fig10_robot.png", out / "fig10_robot.json"]
+    (out / "robot_jerk.json").write_text(json.dumps(report, indent=1, default=float))
+    return [out / "robot_hand_xy.png", out / "robot_hand_xy.npz", out / "robot_jerk.png", out / "robot_jerk.json"]
 
 
 # -- the command --------------------------------------------------------------------------------------------------
@@ -444,16 +445,16 @@ def make_figures(run: RunFolder, out: Path, network: int = 0, window: str = "tes
                  "(or train with --record-spikes)")
     if run.spikes is not None:
         run.spikes.window(window)
-        written["fig5_raster"] = fig5_raster(run, out, network, window, dpi)
+        written["raster"] = raster_figure(run, out, network, window, dpi)
         written["rates"] = rates_figure(run, out, network, window, bin_ms, dpi)
         if grid:
-            written["fig5_raster_grid"] = fig5_raster_grid(run, out, window, dpi)
+            written["raster_grid"] = raster_grid_figure(run, out, window, dpi)
     else:
-        skipped["fig5_raster"] = skipped["rates"] = no_spikes
-    written["fig6_reach"] = fig6_reach(run, out, dpi)
+        skipped["raster"] = skipped["rates"] = no_spikes
+    written["reach_paths"] = reach_paths_figure(run, out, dpi)
     if grid:
-        written["fig6_reach_grid"] = fig6_reach_grid(run, out, dpi)
-    written["fig7_jerk"] = fig7_jerk(run, out, dpi)
+        written["reach_paths_grid"] = reach_paths_grid_figure(run, out, dpi)
+    written["jerk_box"] = jerk_box_figure(run, out, dpi)
     if run.muscles is not None:
         written["muscles"] = muscles_figure(run, out, network, dpi)
     else:
@@ -461,9 +462,9 @@ def make_figures(run: RunFolder, out: Path, network: int = 0, window: str = "tes
                               f"no {MUSCLES_FILE} in {run.path}: record with --record-spikes")
     if robot_log is not None:
         files = robot_figures(robot_log, out)
-        written["fig9_robot"], written["fig10_robot"] = files[:2], files[2:]
+        written["robot_hand_xy"], written["robot_jerk"] = files[:2], files[2:]
     else:
-        skipped["fig9_robot"] = skipped["fig10_robot"] = "no --robot-log given"
+        skipped["robot_hand_xy"] = skipped["robot_jerk"] = "no --robot-log given"
     manifest = {"run": str(run.path), "network": network, "window": window,
                 "written": {k: [p.name for p in v] for k, v in written.items()}, "skipped": skipped}
     (out / "figures.json").write_text(json.dumps(manifest, indent=1))
@@ -481,7 +482,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="recorded window of the raster and rates: test, naive_test or epoch_E (default test)")
     ap.add_argument("--bin-ms", type=float, default=10.0, help="bin of the population rates, ms (default 10)")
     ap.add_argument("--robot-log", type=Path, default=None,
-                    help="a `jaxarm wam-sim` CSV log: also draw Figs. 9-10 (the robot following the virtual arm)")
+                    help="a `jaxarm wam-sim` CSV log: also draw the robot following the virtual arm (hand X/Y, jerk)")
     ap.add_argument("--grid", action="store_true", help="also draw one panel per network (raster and hand paths)")
     ap.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
     args = ap.parse_args(argv)

@@ -5,7 +5,7 @@ Left: the arm seen from above, in the authors' planar frame (shoulder at the ori
 segments; the musculoskeletal arm as its bones and the 22 muscle paths of the MJCF model (MuJoCo's tendon path
 points at the frame's joint angles, projected onto the plane of motion) coloured and thickened by activation;
 the target's success circle and the hand's trace so far. Right: the network's spikes scrolling in time (the bands of
-``jaxarm figures``' Fig. 5) above the EM readout. Frames are drawn with matplotlib (Agg) and encoded to H.264 by
+``jaxarm figures``' raster) above the EM readout. Frames are drawn with matplotlib (Agg) and encoded to H.264 by
 imageio-ffmpeg, whose wheel ships its own ffmpeg.
 
 With ``--robot-log`` (a `jaxarm wam-sim` CSV of the streamed test) the simulated WAM follows as a second arm.
