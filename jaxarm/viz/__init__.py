@@ -1,4 +1,5 @@
-"""Pictures of a run folder: the paper's figures (:mod:`jaxarm.viz.figures`, ``jaxarm figures``) and a video of one
+"""Pictures of a run folder: its figures (:mod:`jaxarm.viz.figures`, ``jaxarm figures``; the paper's among them,
+:data:`jaxarm.paper.figures.FIGURES`) and a video of one
 network reaching (:mod:`jaxarm.viz.video`, ``jaxarm video``). Both read only the files `jaxarm train`/`test` write
 (``results.json``, ``trajectories.npz``, ``history.npz`` and, with ``--record-spikes``, ``spikes.npz`` and
 ``muscles.npz``); nothing is simulated again."""
