@@ -1,12 +1,15 @@
-"""A batch of networks trained together over every device, checkpointed after every epoch.
+"""A batch of networks trained together over every device, checkpointed after every epoch: the one runner of every
+task (:mod:`jaxarm.task.interface`: reaching, centre-out).
 
 Network i of a batch has the key ``PRNGKey(seeds[i])`` (its wiring, noise and babbling), metaparameter set ``mps[i]``
-and target ``targets[i]``; nothing else about the batch changes its results, so any network can be reproduced alone,
+and target data ``targets[i]`` (the task's :meth:`~jaxarm.task.interface.TaskInterface.network_target`: reaching's
+target, centre-out's schedule of targets); nothing else about the batch changes its results, so any network can be reproduced alone,
 in any batch, on any number of devices or processes (:mod:`jaxarm.parallel`). The batch's leading axis is split
 over the device mesh; one compiled ``epoch`` runs all of it, and an orbax checkpoint follows every epoch, so a killed
 run started again with the same command resumes from its last completed epoch and ends with the same bits.
 
-* :class:`Run`: one metaparameter set, one target, networks ``seed .. seed + n - 1`` (``jaxarm train``).
+* :class:`Run`: one metaparameter set, one task (by default one target), networks ``seed .. seed + n - 1``
+  (``jaxarm train``, ``--task`` reaching or centre-out-8).
 * :class:`SetsRun`: network i trains with set i (the paper's statistic: its top 30 sets, one network each).
 * :class:`Batch`: any list of (seed, set, target) rows, e.g. every network of a reproduction in one program.
 """
@@ -30,29 +33,33 @@ from jaxarm.learning.metaparams import NAMES, MetaParams
 from jaxarm.learning.registry import learning_meta
 from jaxarm.loop import LoopConfig
 from jaxarm.network import Network, NetworkConfig
-from jaxarm.task.config import Target
+from jaxarm.task.config import TEST_KEY_FOLD, Target, TaskConfig
+from jaxarm.task.interface import TaskInterface
 from jaxarm.train import EpochSummary, TestResult, Trained, fresh_noise, make_train
 
 #: NetworkConfig fields the commands set from their options; recorded in a run's meta when not the default.
 NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "readout_clip")
-#: Fold of a network's key that seeds its test.
-TEST_KEY_FOLD = 7
+# TEST_KEY_FOLD (imported above): the fold of a network's key that seeds its reaching test; a task says its own
+# (TaskInterface.test_key_fold).
 
 
 @functools.lru_cache(maxsize=16)
-def compiled(config: LoopConfig, mesh, record=None, at_once: int = 0) -> tuple:
+def compiled(config: LoopConfig, mesh, record=None, at_once: int = 0, task: TaskInterface | None = None) -> tuple:
     """``make_train(config, record)`` and its init / epoch / test / epoch_recorded (None unless recording epochs),
-    mapped over networks (keys, metaparameters and targets all per network; ``at_once`` networks of a device
-    together, :func:`jaxarm.parallel.map_networks`) and sharded over ``mesh``; shared by every batch of the same
+    the epochs and the test the ``task``'s (default ``config.task``, reaching: the functions themselves; centre-out:
+    the epoch toward the epoch's target of the schedule, the test on every target), mapped over networks (keys,
+    metaparameters and target data all per network; ``at_once`` networks of a device together,
+    :func:`jaxarm.parallel.map_networks`) and sharded over ``mesh``; shared by every batch of the same
     configuration."""
     fns = make_train(config, record)
+    task = config.task if task is None else task
     b = parallel.BATCHED
     each = lambda fn: parallel.map_networks(fn, at_once)   # noqa: E731
     init = parallel.shard(each(fns.init), b, b, mesh)
-    epoch = parallel.shard(each(fns.epoch), (b, b, b), b, mesh)
-    test = parallel.shard(each(fns.test), (b, b, b, b), b, mesh)
+    epoch = parallel.shard(each(task.epoch(fns.epoch)), (b, b, b), b, mesh)
+    test = parallel.shard(each(task.test(fns.test)), (b, b, b, b), b, mesh)
     epoch_recorded = (None if fns.epoch_recorded is None else
-                      parallel.shard(each(fns.epoch_recorded), (b, b, b), b, mesh))
+                      parallel.shard(each(task.epoch(fns.epoch_recorded)), (b, b, b), b, mesh))
     return fns, init, epoch, test, epoch_recorded
 
 
@@ -145,12 +152,18 @@ def curve_entry(result: TestResult, held_out: TestResult | None = None) -> dict:
 
 
 class Batch:
-    """Networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and targets ``targets[i]`` (stacked), trained
-    with one configuration into ``out`` (checkpoints in ``out/checkpoints``). ``description``: the JSON identity of
-    the batch (what a checkpoint must match to be resumed). ``mesh``: the devices (default: all of them)."""
+    """Networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and target data ``targets[i]`` (stacked: each
+    network's ``task.network_target()``, or another target of the same shape), trained with one configuration into
+    ``out`` (checkpoints in ``out/checkpoints``). ``description``: the JSON identity of the batch (what a checkpoint
+    must match to be resumed). ``mesh``: the devices (default: all of them). ``task``: what the epochs train toward
+    and what the test tests (:mod:`jaxarm.task.interface`; default ``config.task``, reaching); ``config.task`` is
+    taken as ``task.task_config()``."""
 
     def __init__(self, config: LoopConfig, seeds, mps: MetaParams, targets: Target, out: Path, description: dict,
-                 mesh=None, record=None):
+                 mesh=None, record=None, task: TaskInterface | None = None):
+        if task is not None and config.task != task.task_config():
+            config = dataclasses.replace(config, task=task.task_config())
+        self.task = config.task if task is None else task
         self.config, self.out = config, Path(out)
         self.seeds = [int(s) for s in seeds]
         self.n = len(self.seeds)
@@ -167,9 +180,12 @@ class Batch:
         #: test_each_epoch; kept in the checkpoints' meta, so a resumed run keeps the epochs tested before)
         self.learning_curve: dict[int, dict] = {}
         if record is not None:
+            if not isinstance(self.task, TaskConfig):
+                raise ConfigError("spike recording (--record-spikes) records one target's test: not yet for a task "
+                                  "of several targets")
             self._check_record()
         self.fns, self.init_fn, self.epoch_fn, self.test_fn, self.epoch_rec_fn = compiled(
-            config, self.mesh, record, self.at_once)
+            config, self.mesh, record, self.at_once, None if self.task == config.task else self.task)
 
     def _check_record(self) -> None:
         """The windows' buffer capacities (spikes per network) and the memory bound, refused above the limit."""
@@ -242,13 +258,16 @@ class Batch:
 
     def check_capacity(self, lost_spikes, what: str, overflow=None) -> None:
         """Fail with the counts if any network lost a spike (a full spike list) or a synapse (a full delivery row):
-        a fixed-capacity overflow is an error, never a rounding. ``lost_spikes``, ``overflow``: (networks,)."""
+        a fixed-capacity overflow is an error, never a rounding. ``lost_spikes``, ``overflow``: (networks,), or
+        (networks, ...) summed per network (a test on several targets)."""
         for counts, kind, fix in ((lost_spikes, "lost spikes", "raise NetworkConfig.max_passes or spike_capacity"),
                                   (overflow, "synapses left out of the delivery tables",
                                    "raise NetworkConfig.out_capacity")):
             if counts is None:
                 continue
-            counts = np.asarray(counts).reshape(-1)[: self.n]
+            counts = np.asarray(counts)
+            counts = (counts.reshape(counts.shape[0], -1).sum(axis=1) if counts.ndim > 1 else counts.reshape(-1))
+            counts = counts[: self.n]
             bad = np.nonzero(counts)[0]
             if bad.size:
                 nets = ", ".join(f"{self.seeds[i]} ({int(counts[i])})" for i in bad[:10])
@@ -366,7 +385,7 @@ class Batch:
         """The 1 s test of every network (host arrays, padding dropped); with recording, ``result.record`` holds
         its spikes (checked for overflow; ``what`` names the window in errors)."""
         mps, targets = self.batched_inputs()
-        result = self.test_fn(self.keys(TEST_KEY_FOLD), trained, mps, targets)
+        result = self.test_fn(self.keys(self.task.test_key_fold), trained, mps, targets)
         result = jax.tree.map(lambda x: x[: self.n], parallel.host(result))
         self.check_capacity(result.lost_spikes, "test")
         if result.record is not None:
@@ -400,17 +419,28 @@ class Batch:
 
 
 class Run(Batch):
-    """One target: networks ``seed .. seed + n - 1`` trained with one metaparameter set ``mp``."""
+    """One task: networks ``seed .. seed + n - 1`` trained with one metaparameter set ``mp``. ``task``: default
+    ``config.task`` (reaching, one target); another (:class:`jaxarm.task.centre_out.CentreOut`) is recorded in the
+    description as ``task``: its :meth:`~jaxarm.task.interface.TaskInterface.identity`."""
 
     def __init__(self, config: LoopConfig, n_networks: int, seed: int, out: Path, mp: MetaParams, mesh=None,
-                 record=None):
+                 record=None, task: TaskInterface | None = None):
         self.mp, self.seed = mp, seed
+        if task is None or isinstance(task, TaskConfig):   # reaching: the description every run folder has had
+            task = task or config.task
+            what = {"target": task.target}
+            label = f"{config.arm}/{task.target}"
+        else:
+            what = {"task": task.identity()}
+            label = f"{config.arm}/{task.identity().get('name', type(task).__name__)}"
+        tc = task.task_config()
+        target = task.network_target()
         super().__init__(config, range(seed, seed + n_networks), stack_rows([mp] * n_networks),
-                         Target.stack([config.task.target] * n_networks), out,
-                         {"arm": config.arm, "backend": config.backend, "target": config.task.target,
-                          "networks": n_networks, "seed": seed, "epochs": config.task.epochs,
-                          "epoch_s": config.task.epoch_duration_s, "metaparams": mp.to_dict(),
-                          "label": f"{config.arm}/{config.task.target}"}, mesh, record)
+                         Target(*(np.stack([np.asarray(x, np.float32)] * n_networks) for x in target)), out,
+                         {"arm": config.arm, "backend": config.backend, **what,
+                          "networks": n_networks, "seed": seed, "epochs": tc.epochs,
+                          "epoch_s": tc.epoch_duration_s, "metaparams": mp.to_dict(),
+                          "label": label}, mesh, record, task)
 
     def meta(self) -> dict:
         return {k: v for k, v in super().meta().items() if k != "label"}

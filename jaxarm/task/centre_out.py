@@ -10,13 +10,19 @@ k is direction group k of an 8-group target code.
     task = CentreOut()                                    # the eight targets, 3 epochs each, cycled
     net = NetworkConfig(spec=with_target_code(NetworkSpec.dura_bernal_2015()))
 
-This module is the task as data; :mod:`jaxarm.run_centre_out` trains and tests on it (``make_centre_out_train``,
-``train_and_test``, ``run_with_control``).
+This module is the task as data, with the task interface (:mod:`jaxarm.task.interface`) that lets the runner
+(:class:`jaxarm.run.Batch`) train and test it as it does reaching: each network's targets are the schedule (arrays
+(n_targets, 2)), epoch e trains toward row e % n_targets, the test runs on every row. :mod:`jaxarm.run_centre_out`
+runs it (``make_centre_out_train``, ``train_and_test``, ``run_with_control``) and writes its results.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Callable, ClassVar
+
+import jax
 
 from jaxarm.config.spec import GENERATOR, NetworkSpec, Pathway, Population
 from jaxarm.config.validate import ConfigError, check_range
@@ -32,6 +38,9 @@ class CentreOut:
     """The task as data: ``targets`` (names of :data:`~jaxarm.task.config.TARGET_ANGLES_RAD`, in target-code group
     order), ``epochs_per_target`` training epochs of ``epoch_duration_s`` toward each, cycled (epoch e trains toward
     target e % n), and the usual test (``test_duration_s``, ``success_radius_m``) on every target."""
+
+    #: the task interface: a network is tested with its own key (as this task always was), not a fold of it
+    test_key_fold: ClassVar[int | None] = None
 
     targets: tuple[str, ...] = CENTRE_OUT_8
     epochs_per_target: int = 3
@@ -55,6 +64,29 @@ class CentreOut:
     def stacked_targets(self) -> Target:
         """(n_targets, 2) Target arrays, in ``targets`` order."""
         return Target.stack(self.targets)
+
+    # -- the task interface (jaxarm.task.interface) ------------------------------------------------------------------
+    def network_target(self) -> Target:
+        """A network's target data: every target, (n_targets, 2) arrays in ``targets`` order (the schedule)."""
+        return self.stacked_targets()
+
+    def epoch(self, epoch_fn: Callable) -> Callable:
+        """The epoch toward target ``carry.epoch % n_targets`` of the network's targets."""
+        n = len(self.targets)
+
+        def epoch(carry, mp, targets):
+            return epoch_fn(carry, mp, jax.tree.map(lambda a: a[carry.epoch % n], targets))
+
+        return epoch
+
+    def test(self, test_fn: Callable) -> Callable:
+        """The test on every target (one key, one trained network): a TestResult with a leading target axis."""
+        return jax.vmap(test_fn, in_axes=(None, None, None, 0))
+
+    def identity(self) -> dict:
+        """The task as a run records it (the test's length apart: a finished run may be re-tested longer)."""
+        return {"name": "centre-out"} | {k: list(v) if isinstance(v, tuple) else v
+                                         for k, v in dataclasses.asdict(self).items() if k != "test_duration_s"}
 
     def directions_deg(self) -> tuple[float, ...]:
         """Direction of each target from the start hand position, degrees counterclockwise from +x."""

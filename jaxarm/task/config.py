@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any, Callable, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -35,6 +35,8 @@ TARGET_ANGLES_RAD: dict[str, tuple[float, float]] = {
 REACHING_TARGETS = ("left", "bottom")
 #: Choices of TaskConfig.test_em_noise_events.
 TEST_EM_NOISE_EVENTS = ("unlimited", "netstim")
+#: Fold of a network's key that seeds its reaching test (``TaskConfig.test_key_fold``).
+TEST_KEY_FOLD = 7
 
 
 def forward_kinematics_m(q_rad, segments_m=ARM_SEGMENTS_M) -> tuple[float, float]:
@@ -88,6 +90,9 @@ class TaskConfig:
             half the cells happens before the 1 s test ends. Training noise is never limited.
     """
 
+    #: the task interface (:mod:`jaxarm.task.interface`): a network's test key is its key folded with this
+    test_key_fold: ClassVar[int | None] = TEST_KEY_FOLD
+
     target: str = "left"
     start_posture_rad: tuple[float, float] = START_POSTURE_RAD
     success_radius_m: float = 0.04
@@ -112,6 +117,27 @@ class TaskConfig:
         if (len(self.segments_m) != 2
                 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v <= 2 for v in self.segments_m)):
             raise ConfigError(f"TaskConfig.segments_m = {self.segments_m!r}: a pair (upper arm, forearm), each in (0, 2] m")
+
+    # -- the task interface (jaxarm.task.interface): one target, every epoch and the test -----------------------
+    def task_config(self) -> "TaskConfig":
+        """Itself: a reaching task is its own per-run settings."""
+        return self
+
+    def network_target(self) -> Target:
+        """The one target, arrays (2,)."""
+        return self.target_params
+
+    def epoch(self, epoch_fn: Callable) -> Callable:
+        """``epoch_fn`` itself: every epoch trains toward the network's target."""
+        return epoch_fn
+
+    def test(self, test_fn: Callable) -> Callable:
+        """``test_fn`` itself: the test on the network's target."""
+        return test_fn
+
+    def identity(self) -> dict:
+        """The reaching task as a run records it (``jaxarm train``'s description: target, epochs, epoch_s)."""
+        return {"target": self.target, "epochs": self.epochs, "epoch_s": self.epoch_duration_s}
 
     @property
     def target_q_rad(self) -> tuple[float, float]:
