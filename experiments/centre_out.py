@@ -5,12 +5,13 @@ the paper's network without the target code, trained and tested the same way.
     python experiments/centre_out.py [--arm simple] [--networks 30] [--epochs-per-target 3] [--seed 0]
                                      [--preset NAME] [--conditions target-code,control] [--out runs/centre-out]
 
-Every condition trains ``--networks`` networks (seeds SEED .. SEED + n - 1) in one batch (the native kernel's
-threads over every core), epoch e toward target e % 8 (``jaxarm.task.centre_out``), then tests each network on
-all eight targets (1 s, no learning), and each untrained network the same way (naive). Prints the success count
-per target and the distribution of targets reached per network, and writes OUT/centre_out.json after each
-condition (a rerun skips the finished ones). The same as ``jaxarm reproduce --task centre-out-8``, with the target
-code's options and ``--plastic`` to choose which pathways learn.
+Every condition trains ``--networks`` networks (seeds SEED .. SEED + n - 1) in one batch of the runner
+(``jaxarm.run.Batch``: every device, checkpoints in OUT/CONDITION), epoch e toward target e % 8
+(``jaxarm.task.centre_out``), then tests each network on all eight targets (1 s, no learning), and each untrained
+network the same way (naive). Prints the success count per target and the distribution of targets reached per
+network, and writes OUT/centre_out.json after each condition (a rerun skips the finished ones and resumes a killed
+one). The same as ``jaxarm reproduce --task centre-out-8``, with the target code's options and ``--plastic`` to
+choose which pathways learn.
 """
 from __future__ import annotations
 
@@ -63,7 +64,8 @@ def main(argv=None) -> int:
                         task=task.task_config())
     result = run_with_control(config, task, range(args.seed, args.seed + args.networks), mp, args.out,
                               conditions=tuple(args.conditions.split(",")), code=code,
-                              plastic=None if args.plastic is None else tuple(args.plastic.split(",")), meta=meta)
+                              plastic=None if args.plastic is None else tuple(args.plastic.split(",")), meta=meta,
+                              progress=True)
     print(table_markdown(result))
     print("->", args.out / "centre_out.json")
     return 0

@@ -1,4 +1,5 @@
-"""``jaxarm train`` and ``jaxarm test``: train many networks on a reaching target, test them, write the results.
+"""``jaxarm train`` and ``jaxarm test``: train many networks on a task (reaching targets, or ``--task centre-out-8``),
+test them, write the results; every task through the one runner (:class:`jaxarm.run.Run`).
 
     jaxarm train --arm simple --target left --networks 30 --seed 0 --out runs/simple_left
     jaxarm test  --from runs/simple_left                   # re-test the trained networks (e.g. another duration)
@@ -17,7 +18,8 @@ rates, gains, distances and critic counts for every network: arrays (epochs, net
 and velocity profiles, trained vs naive, in the paper's layout). With ``--record-spikes``: ``spikes.npz``
 (every cell's spikes in the tests, and with ``--record-train-s`` in the last seconds of chosen epochs;
 :mod:`jaxarm.record`) and, for the musculoskeletal arm, ``muscles.npz``; ``jaxarm figures`` and ``jaxarm video``
-draw them.
+draw them. With ``--task centre-out-8``: ``results.json`` and ``trajectories.npz`` of the task's own
+(:func:`jaxarm.run_centre_out.write_outputs`: every network tested on every target) and ``checkpoints/``.
 """
 from __future__ import annotations
 
@@ -306,7 +308,20 @@ def _add_test_noise_option(ap, default="unlimited"):
                          "test_em_noise_events)")
 
 
-def _configs(args) -> list[tuple[str, LoopConfig]]:
+def _configs(args) -> list[tuple[str, LoopConfig, object]]:
+    """(name, LoopConfig, task) of every run the options ask for: one per --target (the task None: the config's
+    own, reaching), or with --task centre-out-8 the one run of a CentreOut task (its target code added to the
+    network unless it has one)."""
+    if getattr(args, "task", TASK_DEFAULT) == "centre-out-8":
+        from jaxarm.task.centre_out import CentreOut, ensure_target_code
+
+        task = CentreOut(epochs_per_target=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s)
+        net = network_config(args)
+        net = dataclasses.replace(net, spec=ensure_target_code(net.spec, task))
+        learning = getattr(args, "learning", DEFAULT)
+        return [("centre-out-8", LoopConfig(arm=args.arm, backend=args.backend, network=net,
+                                            task=task.task_config(), learning=learning,
+                                            rule=RULES[learning].config_from_arguments(args)), task)]
     out = []
     for target in args.target:
         task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
@@ -314,7 +329,7 @@ def _configs(args) -> list[tuple[str, LoopConfig]]:
         learning = getattr(args, "learning", DEFAULT)
         cfg = LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task,
                          learning=learning, rule=RULES[learning].config_from_arguments(args))
-        out.append((target, cfg))
+        out.append((target, cfg, None))
     return out
 
 
@@ -367,7 +382,8 @@ def train_main(argv: list[str] | None = None) -> int:
                     help="reaching (default): one --target per network, the paper's task; centre-out-8: the "
                          "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
                          "epoch, a target code added to the network unless --network has one, every network tested "
-                         "on every target (jaxarm.run_centre_out; one process, no checkpoints)")
+                         "on every target (jaxarm.run_centre_out; checkpoints, resume and --coordinator as "
+                         "reaching; no --record-spikes or --test-each-epoch yet)")
     ap.add_argument("--test-each-epoch", action="store_true",
                     help="also test every network after every epoch: results.json's learning_curve (successes per "
                          "epoch, and per network the training seconds until its test first succeeded)")
@@ -379,9 +395,9 @@ def train_main(argv: list[str] | None = None) -> int:
     except ConfigError as e:
         ap.error(str(e))
     _check(ap, args)
-    if args.task == "centre-out-8":
-        return _centre_out_main(ap, args, base)
     try:
+        if args.task != TASK_DEFAULT and (args.record_spikes or args.record_train_s or args.test_each_epoch):
+            raise ConfigError(f"--task {args.task}: without --record-spikes or --test-each-epoch (not yet)")
         parallel_cli.start_from_arguments(args)
         configs = _configs(args)
         overrides = _parse_overrides(args.overrides)
@@ -395,12 +411,40 @@ def train_main(argv: list[str] | None = None) -> int:
         return _train_targets(ap, args, configs, mp, record)
 
 
+def _reaching_said(args, run, res) -> str:
+    return (f"{run.config.arm} arm, {run.config.task.target} target: {res['success_count']}/{run.n} trained networks "
+            f"reached the {run.config.task.success_radius_m * 100:.0f} cm circle (naive: "
+            f"{res['naive']['success_count']}/{run.n}); median min distance "
+            f"{np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm -> {run.out / 'results.json'}")
+
+
+def _centre_out_said(args, run, res) -> str:
+    return (f"{run.config.arm} arm, {len(res['targets'])} centre-out targets, {run.n} networks: "
+            + ", ".join(f"{t} {n}/{run.n}" for t, n in res["trained"]["per_target"].items())
+            + f" (naive: {sum(res['naive']['per_target'].values())} reaches in all); networks by targets reached "
+            f"(0..{len(res['targets'])}): {res['trained']['targets_reached_per_network']} -> "
+            f"{run.out / 'results.json'}")
+
+
+def _task_outputs(name: str):
+    """(write the results, the line that says them) of the task registered as ``name``: reaching's
+    :func:`write_outputs`, centre-out's :func:`jaxarm.run_centre_out.write_outputs`."""
+    if name == "centre-out-8":
+        from jaxarm import run_centre_out
+
+        return run_centre_out.write_outputs, _centre_out_said
+    return write_outputs, _reaching_said
+
+
 def _train_targets(ap, args, configs, mp, record) -> int:
+    """Every run of ``configs`` ((name, LoopConfig, task): one per reaching target, or the one centre-out run)
+    through the one runner (:class:`jaxarm.run.Run`: checkpoints, resume, every device of every process)."""
+    write, said = _task_outputs(args.task)
     summary = {}
-    for target, cfg in configs:
-        out = args.out / target if len(configs) > 1 else args.out
+    for name, cfg, task in configs:
+        out = args.out / name if len(configs) > 1 else args.out
         try:
-            run = Run(cfg, args.networks, args.seed, out, mp, record=record)
+            run = Run(cfg, args.networks, args.seed, out, mp, record=record, task=task)
         except ConfigError as e:
             ap.error(str(e))
         if parallel.is_main_process():
@@ -408,57 +452,14 @@ def _train_targets(ap, args, configs, mp, record) -> int:
                                         jax.process_count(), ("--networks", lambda v: v, run.n)), flush=True)
         carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress,
                                                                 test_each_epoch=args.test_each_epoch)
-        res = write_outputs(run, run.test(carry.trained), run.test(run.naive(), "naive test"), history, wall,
-                            epochs_run, compile_s)
-        summary[target] = res["success_count"]
+        res = write(run, run.test(carry.trained), run.test(run.naive(), "naive test"), history, wall, epochs_run,
+                    compile_s)
+        if "success_count" in res:
+            summary[name] = res["success_count"]
         if parallel.is_main_process():
-            print(f"{args.arm} arm, {target} target: {res['success_count']}/{args.networks} trained networks reached "
-              f"the {cfg.task.success_radius_m * 100:.0f} cm circle (naive: {res['naive']['success_count']}/"
-                  f"{args.networks}); median min distance "
-                  f"{np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm -> {out / 'results.json'}")
+            print(said(args, run, res), flush=True)
     if len(configs) > 1 and parallel.is_main_process():
         (args.out / "summary.json").write_text(json.dumps({"success_count": summary, "networks": args.networks}))
-    return 0
-
-
-def _centre_out_main(ap, args, base: dict) -> int:
-    """``jaxarm train --task centre-out-8``: train and test in one batch, write results.json and trajectories.npz."""
-    import time
-
-    from jaxarm.run_centre_out import train_and_test
-    from jaxarm.task.centre_out import CentreOut, ensure_target_code
-
-    try:
-        if args.learning != DEFAULT or args.record_spikes or args.test_each_epoch:
-            raise ConfigError("--task centre-out-8: R-STDP learning only, without --record-spikes or "
-                              "--test-each-epoch (not yet)")
-        task = CentreOut(epochs_per_target=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s)
-        net = network_config(args)
-        net = dataclasses.replace(net, spec=ensure_target_code(net.spec, task))
-        if args.coordinator or args.num_processes:
-            raise ConfigError("--task centre-out-8 runs in one process (no --coordinator yet)")
-        # the batch over every device of this process (--devices N narrows it), one kernel thread per device
-        config = LoopConfig(arm=args.arm, backend=args.backend, network=net, task=task.task_config())
-        mp = MetaParams.from_dict({**base, **_parse_overrides(args.overrides)})
-    except ConfigError as e:
-        ap.error(str(e))
-    seeds = list(range(args.seed, args.seed + args.networks))
-    with runfolder.claim(args.out, "jaxarm train --task centre-out-8"):
-        t0 = time.perf_counter()
-        r = train_and_test(config, task, seeds, mp)
-        wall = time.perf_counter() - t0
-        hands = {k: r[k].pop("hand_m") for k in ("trained", "naive")}
-        results = {"task": "centre-out-8", **r, "n_networks": args.networks,
-                   "network_seconds": args.networks * task.task_config().epochs * args.epoch_s,
-                   "wall_s": round(wall, 1),
-                   "config": {"loop": _jsonable(dataclasses.asdict(config)), "metaparams": mp.to_dict()}}
-        (args.out / "results.json").write_text(json.dumps(results, indent=1))
-        np.savez_compressed(args.out / "trajectories.npz", hand=hands["trained"], naive_hand=hands["naive"],
-                            target=np.asarray(task.stacked_targets().xy_m), seeds=np.asarray(seeds))
-    print(f"{args.arm} arm, eight centre-out targets, {args.networks} networks: "
-          + ", ".join(f"{t} {n}/{args.networks}" for t, n in r["trained"]["per_target"].items())
-          + f" (naive: {sum(r['naive']['per_target'].values())} reaches in all); networks by targets reached (0..8): "
-          f"{r['trained']['targets_reached_per_network']} -> {args.out / 'results.json'}")
     return 0
 
 
@@ -556,22 +557,36 @@ def test_main(argv: list[str] | None = None) -> int:
     if meta["epochs"] != ckpt.latest_step():
         raise SystemExit(f"{args.src} finished {ckpt.latest_step()} of {meta['epochs']} epochs: rerun `jaxarm train` "
                          "with the same options to finish it first")
-    task = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
-                      test_duration_s=args.test_s or 1.0, test_em_noise_events=args.test_em_noise_events)
+    task = None
+    if "task" in meta:   # a task of its own (jaxarm train --task centre-out-8): rebuilt from its identity
+        from jaxarm.task.centre_out import CentreOut
+
+        if meta["task"].get("name") != "centre-out" or record is not None:
+            ap.error(f"--from {args.src}: a {meta['task'].get('name')} run re-tests without --record-spikes (not "
+                     "yet)")
+        task = CentreOut(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["task"].items()
+                            if k != "name"}, test_duration_s=args.test_s or 1.0)
+        meta = meta | {"target": task.targets[0]}
+    tc = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
+                    test_duration_s=args.test_s or 1.0, test_em_noise_events=args.test_em_noise_events)
+    if task is not None:
+        tc = task.task_config()
     # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
     network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
                              | ({"crossing": args.crossing} if args.crossing else {}))
     learning, rule = rule_from_meta(meta)   # the rule's carry is restored with the gains (gradient: Adam's state)
-    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=task, learning=learning,
+    cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=tc, learning=learning,
                      rule=rule)
     out = args.out or args.src / "test"
     with runfolder.claim(out, "jaxarm test"):   # one writer per folder, as for jaxarm train
-        return _test_into(ap, args, meta, cfg, out, record, overrides)
+        return _test_into(ap, args, meta, cfg, out, record, overrides, task)
 
 
-def _test_into(ap, args, meta, cfg, out, record, overrides) -> int:
+def _test_into(ap, args, meta, cfg, out, record, overrides, task=None) -> int:
     try:
-        if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
+        if task is not None:
+            run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]), task=task)
+        elif isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
             from jaxarm.run import stack_rows
 
             run = SetsRun(cfg, meta["seed"], out, stack_rows([MetaParams.from_dict(m) for m in meta["metaparams"]]),
@@ -589,7 +604,9 @@ def _test_into(ap, args, meta, cfg, out, record, overrides) -> int:
         if args.fresh_noise < 0:
             ap.error(f"--fresh-noise = {args.fresh_noise}: must be >= 0")
         trained, naive = (fresh_noise(t, args.fresh_noise) for t in (trained, naive))
-    res = write_outputs(run, run.test(trained), run.test(naive, "naive test"), history, 0.0, 0)
+    write, said = _task_outputs("reaching" if task is None else "centre-out-8")
+    res = write(run, run.test(trained), run.test(naive, "naive test"), history, 0.0, 0)
     if parallel.is_main_process():
-        print(f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
+        print(said(args, run, res) if task is not None else
+              f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
     return 0

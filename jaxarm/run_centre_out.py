@@ -1,6 +1,8 @@
-"""Training and testing on the centre-out task (:class:`jaxarm.task.centre_out.CentreOut`): its pure train and test
-functions over :func:`jaxarm.train.make_train` (epoch e trains toward target e % n, every network is tested on every
-target), a batch of networks over every device, and the comparison with a control network without the target code.
+"""Training and testing on the centre-out task (:class:`jaxarm.task.centre_out.CentreOut`) through the one runner
+(:class:`jaxarm.run.Batch`: every device, groups, checkpoints after every epoch, kill -9 resume, several processes):
+epoch e trains toward target e % n (the task's :meth:`~jaxarm.task.centre_out.CentreOut.epoch`), every network is
+tested on every target; its results (:func:`summary`, :func:`write_outputs`), and the comparison with a control
+network without the target code (:func:`run_with_control`).
 
     task = CentreOut()                                    # the eight targets, 3 epochs each, cycled
     net = NetworkConfig(spec=with_target_code(NetworkSpec.dura_bernal_2015()))
@@ -10,16 +12,22 @@ target), a batch of networks over every device, and the comparison with a contro
 """
 from __future__ import annotations
 
+import dataclasses
+import json
+import tempfile
 from dataclasses import replace
+from pathlib import Path
 from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
-from jaxarm.run import network_keys
+from jaxarm.run import Batch, stack_rows
 from jaxarm.task.centre_out import CentreOut, ensure_target_code
+from jaxarm.task.config import Target
 from jaxarm.train import make_train
 
 
@@ -34,52 +42,56 @@ class CentreOutFns(NamedTuple):
 
 def make_centre_out_train(config, task: CentreOut = CentreOut(), record=None) -> CentreOutFns:
     """Pure train and test functions of the centre-out task for one static ``config`` (a LoopConfig whose task is
-    ``task.task_config()``; it is replaced by that if it differs)."""
+    ``task.task_config()``; it is replaced by that if it differs): the task's epoch and test
+    (:mod:`jaxarm.task.interface`) over :func:`jaxarm.train.make_train`'s, all epochs under one ``lax.scan``."""
     if config.task != task.task_config():
         config = replace(config, task=task.task_config())
     fns = make_train(config, record)
-    targets = jax.tree.map(jnp.asarray, task.stacked_targets())
-    n = len(task.targets)
+    targets = jax.tree.map(jnp.asarray, task.network_target())
+    epoch, test_all = task.epoch(fns.epoch), task.test(fns.test)
 
     def train(key, mp):
-        def epoch(carry, _):
-            target = jax.tree.map(lambda a: a[carry.epoch % n], targets)
-            return fns.epoch(carry, mp, target)
-
-        carry, history = jax.lax.scan(epoch, fns.init(key), None, length=config.task.epochs)
+        carry, history = jax.lax.scan(lambda c, _: epoch(c, mp, targets), fns.init(key), None,
+                                      length=config.task.epochs)
         return carry.trained, history
 
     def test(key, trained, mp):
-        return jax.vmap(fns.test, in_axes=(None, None, None, 0))(key, trained, mp, targets)
+        return test_all(key, trained, mp, targets)
 
     return CentreOutFns(train=train, test=test, fns=fns)
 
 
-def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
-    """Train one network per seed (key ``PRNGKey(seed)``) in one batch, test each, and each untrained network, on
-    every target; returns plain results: success per (network, target), counts per target (trained and naive), the
-    distribution of targets reached per network, median closest approach per target (cm), hand paths (m)."""
-    import numpy as np
+def batch(config, task: CentreOut, seeds, mp, out, mesh=None) -> Batch:
+    """The runner's batch of one network per seed (key ``PRNGKey(seed)``), each trained with ``mp`` on ``task``
+    into ``out`` (checkpoints in ``out/checkpoints``)."""
+    seeds = [int(s) for s in seeds]
+    n = len(seeds)
+    target = task.network_target()
+    return Batch(config, seeds, stack_rows([mp] * n), Target(*(np.stack([np.asarray(x, np.float32)] * n)
+                                                              for x in target)), out,
+                 {"arm": config.arm, "backend": config.backend, "task": task.identity(), "seeds": seeds,
+                  "metaparams": mp.to_dict(), "label": f"{config.arm}/centre-out"}, mesh, task=task)
 
-    fns = make_centre_out_train(config, task)
-    keys = network_keys(seeds)
-    # over every device of this process, in groups of networks_at_once, as `jaxarm train` runs its batches: the
-    # same bits on any device count and batch size (docs/scaling.md, "Known limit", for another batch's rows)
-    m = parallel.mesh() if jax.process_count() == 1 else None
-    over_networks = lambda fn: jax.jit(parallel.sharded_map(fn, m))   # noqa: E731
-    trained, history = over_networks(lambda k: fns.train(k, mp))(keys)
-    test = over_networks(lambda k, t: fns.test(k, t, mp))
-    res = test(keys, trained)
-    naive = test(keys, over_networks(lambda k: fns.fns.init(k).trained)(keys))
+
+def _per_network(x) -> np.ndarray:
+    """A history field (epochs, networks, ...) as (networks, epochs, ...), C-contiguous: the layout the means over
+    networks were always taken in (so they round as they always did)."""
+    return np.ascontiguousarray(np.swapaxes(np.asarray(x), 0, 1))
+
+
+def summary(task: CentreOut, spec, seeds, history, res, naive) -> dict:
+    """The task's results from host arrays (``history`` (epochs, networks, ...) as :meth:`jaxarm.run.Batch.train`
+    returns it; ``res``, ``naive``: TestResults (networks, targets, ...)): success per (network, target), counts per
+    target (trained and naive), the distribution of targets reached per network, median closest approach per target
+    (cm), hand paths (m) under ``trained["hand_m"]`` and ``naive["hand_m"]``."""
     n_t = len(task.targets)
-    spec = config.network.spec
-    hist = {"rates_last10s_hz": {p: np.asarray(history.rates_last10s_hz)[:, :, j].mean(axis=0).round(3).tolist()
+    hist = {"rates_last10s_hz": {p: _per_network(history.rates_last10s_hz)[:, :, j].mean(axis=0).round(3).tolist()
                                  for j, p in enumerate(spec.network_populations)},
-            "mean_wgain": {pw.name: np.asarray(history.mean_wgain)[:, :, j].mean(axis=0).round(4).tolist()
+            "mean_wgain": {pw.name: _per_network(history.mean_wgain)[:, :, j].mean(axis=0).round(4).tolist()
                            for j, pw in enumerate(spec.pathways) if pw.plastic},
-            "rewards": np.asarray(history.rewards).mean(axis=0).round(1).tolist(),
-            "punishments": np.asarray(history.punishments).mean(axis=0).round(1).tolist(),
-            "min_distance_cm": (100 * np.asarray(history.min_distance_m).mean(axis=0)).round(2).tolist()}
+            "rewards": _per_network(history.rewards).mean(axis=0).round(1).tolist(),
+            "punishments": _per_network(history.punishments).mean(axis=0).round(1).tolist(),
+            "min_distance_cm": (100 * _per_network(history.min_distance_m).mean(axis=0)).round(2).tolist()}
     out = {"targets": list(task.targets), "directions_deg": [round(d, 1) for d in task.directions_deg()],
            "seeds": [int(s) for s in seeds], "history_mean_over_networks_by_epoch": hist,
            "test_rates_hz": {p: np.asarray(res.rates_hz)[..., j].mean().round(3).item()
@@ -98,23 +110,61 @@ def train_and_test(config, task: CentreOut, seeds, mp) -> dict:
     return out
 
 
+def train_and_test(config, task: CentreOut, seeds, mp, out=None, progress: bool = False) -> dict:
+    """Train one network per seed (key ``PRNGKey(seed)``) in one batch of the runner, test each, and each untrained
+    network, on every target; returns :func:`summary`. ``out``: the batch's folder (its checkpoints: a rerun resumes;
+    default a temporary folder, one process only)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        b = batch(config, task, seeds, mp, Path(tmp) if out is None else out)
+        carry, history, *_ = b.train(progress=progress)
+        return summary(task, b.config.network.spec, b.seeds, history, b.test(carry.trained),
+                       b.test(b.naive(), "naive test"))
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    return x.item() if isinstance(x, np.generic) else x
+
+
+def write_outputs(run: Batch, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None) -> dict:
+    """``jaxarm train --task centre-out-8``'s results.json (:func:`summary`, the configuration, the timing) and
+    trajectories.npz (hand paths (networks, targets, samples, 2), trained and naive; the targets; the seeds), written
+    by process 0; every process returns the results. ``run``: a :class:`~jaxarm.run.Batch` of a CentreOut task."""
+    task = run.task
+    r = summary(task, run.config.network.spec, run.seeds, history, trained_res, naive_res)
+    hands = {k: r[k].pop("hand_m") for k in ("trained", "naive")}
+    results = {"task": "centre-out-8", **r, "n_networks": run.n,
+               "network_seconds": run.n * task.task_config().epochs * task.epoch_duration_s,
+               "timing": {"train_wall_s_this_invocation": round(wall_s, 2), "epochs_run_this_invocation": epochs_run,
+                          "compile_s": None if compile_s is None else round(compile_s, 2),
+                          "device": jax.default_backend(), "layout": parallel.describe()},
+               "config": {"loop": _jsonable(dataclasses.asdict(run.config)), **run.meta()}}
+    if parallel.is_main_process():
+        run.out.mkdir(parents=True, exist_ok=True)
+        (run.out / "results.json").write_text(json.dumps(results, indent=1))
+        np.savez_compressed(run.out / "trajectories.npz", hand=hands["trained"], naive_hand=hands["naive"],
+                            target=np.asarray(task.stacked_targets().xy_m), seeds=np.asarray(run.seeds))
+    return results
+
+
 #: The two conditions of the centre-out comparison: the network with a target code, and without (the control)
 CONDITIONS = ("target-code", "control")
 
 
 def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=CONDITIONS, code: dict | None = None,
-                     plastic=None, meta: dict | None = None, log=print) -> dict:
+                     plastic=None, meta: dict | None = None, log=print, progress: bool = False) -> dict:
     """Train and test one network per seed on every target of ``task`` under each condition: ``target-code``
     (``config``'s network with ``with_target_code(spec, task, **code)`` unless it has one) and ``control`` (the
     network without any target code and its pathways; when ``config``'s only plastic pathways were the code's,
     nothing in the control learns and its trained networks are its naive ones). ``plastic``: names of the only
     plastic pathways of the target-code network (e.g. ``("T->EM",)``; default: as built). Results go to
     ``out/centre_out.json`` after each condition; a rerun with the same description skips the conditions already
-    there. Returns that file's content."""
-    import dataclasses
-    import json
+    there, and a condition killed mid-training resumes from its checkpoints (``out/CONDITION/checkpoints``).
+    ``progress``: the runner's progress bar. Returns that file's content."""
     import time
-    from pathlib import Path
 
     out = Path(out)
     base = config.network.spec
@@ -142,7 +192,7 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
             continue
         t0 = time.perf_counter()
         cfg = dataclasses.replace(config, network=dataclasses.replace(config.network, spec=specs[name]))
-        r = train_and_test(cfg, task, seeds, mp)
+        r = train_and_test(cfg, task, seeds, mp, out / name, progress=progress)
         for k in ("trained", "naive"):
             r[k].pop("hand_m")
         r.update(condition=name, populations=list(specs[name].names),

@@ -93,8 +93,13 @@ def test_the_command_line_trains_and_tests_the_eight_targets(tmp_path):
     assert [p["name"] for p in spec["populations"]][-2:] == ["P", "T"]       # the target code was added
     hand = np.load(out / "trajectories.npz")["hand"]
     assert hand.shape == (2, 8, 21, 2)
+    assert (out / "checkpoints" / "8").is_dir()            # the runner's checkpoint after every epoch
+    # `jaxarm test --from` rebuilds the task from the checkpoint's description: the same test, the same results
+    assert main(["test", "--from", str(out), "--test-s", "0.2"]) == 0
+    again = json.loads((out / "test" / "results.json").read_text())
+    assert again["trained"] == r["trained"] and again["naive"] == r["naive"]
     with pytest.raises(SystemExit):
-        main(["train", "--task", "centre-out-8", "--learning", "gradient", "--out", str(tmp_path / "g")])
+        main(["train", "--task", "centre-out-8", "--record-spikes", "--out", str(tmp_path / "r")])
 
 
 @pytest.mark.slow   # compiles a centre-out training and test for two batch sizes

@@ -18,7 +18,7 @@ def _train(argv, monkeypatch):
     caught = {}
 
     def train_targets(ap, args, configs, mp, record):
-        caught.update(mp=mp.to_dict(), epochs=[cfg.task.epochs for _, cfg in configs])
+        caught.update(mp=mp.to_dict(), epochs=[cfg.task.epochs for _, cfg, _task in configs])
         return 0
 
     monkeypatch.setattr(experiment, "_train_targets", train_targets)

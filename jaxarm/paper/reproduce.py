@@ -570,8 +570,8 @@ def reproduce_main(argv: list[str] | None = None) -> int:
 
 def _reproduce_centre_out(args, preset, argv) -> int:
     """``jaxarm reproduce --task centre-out-8``: :func:`jaxarm.run_centre_out.run_with_control` with the preset's
-    best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; one process,
-    every core as the native kernel's threads; a rerun skips the finished condition."""
+    best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; one process
+    (every device of it, through the runner); a rerun skips the finished condition and resumes a killed one."""
     from jaxarm.experiment import _parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
@@ -597,7 +597,8 @@ def _reproduce_centre_out(args, preset, argv) -> int:
     meta = {"command": shlex.join(["jaxarm", "reproduce", *argv]), **measured_on()}
     with runfolder.claim(args.out, "jaxarm reproduce --task centre-out-8"):
         result = run_with_control(LoopConfig(arm=args.arm, network=net, task=task.task_config()), task,
-                                  range(args.seed, args.seed + args.networks), mp, args.out, meta=meta)
+                                  range(args.seed, args.seed + args.networks), mp, args.out, meta=meta,
+                                  progress=not args.no_progress)
         table = table_markdown(result)
         (args.out / "centre_out.md").write_text(table + "\n")
     print(table)
