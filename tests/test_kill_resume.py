@@ -85,3 +85,31 @@ def test_killed_reproduce_resumes_bit_for_bit(tmp_path, env):
         same_results(tmp_path / "full" / "left" / mode, killed / "left" / mode)
     ta, tb = (json.loads((d / "success_table.json").read_text()) for d in (tmp_path / "full", killed))
     assert ta["targets"] == tb["targets"]
+
+
+CENTRE_OUT = ["train", "--task", "centre-out-8", "--arm", "simple", "--networks", "2", "--epochs", "1", "--epoch-s",
+              "0.4", "--test-s", "0.2", "--seed", "3", "--no-progress"]
+
+
+def same_centre_out_results(a: Path, b: Path):
+    ra, rb = (json.loads((f / "results.json").read_text()) for f in (a, b))
+    for key in ("trained", "naive", "history_mean_over_networks_by_epoch", "test_rates_hz", "naive_test_rates_hz",
+                "seeds", "targets"):
+        assert ra[key] == rb[key], key
+    ta, tb = np.load(a / "trajectories.npz"), np.load(b / "trajectories.npz")
+    for k in ta.files:
+        np.testing.assert_array_equal(ta[k], tb[k], err_msg=k)
+
+
+@pytest.mark.slow   # three centre-out trainings (one compiles in this process, two in children)
+def test_killed_centre_out_train_resumes_bit_for_bit(tmp_path, env):
+    """`jaxarm train --task centre-out-8` runs through the same runner as reaching: killed after its second epoch
+    (of eight, one per target), the same command resumes and ends with the uninterrupted run's results."""
+    in_process(CENTRE_OUT, tmp_path / "full")
+    killed = tmp_path / "killed"
+    kill_after(CENTRE_OUT, killed, killed / "checkpoints" / "2", env)
+    done = sorted(int(p.name) for p in (killed / "checkpoints").iterdir() if p.name.isdigit())
+    assert 2 <= done[-1] < 8 and not (killed / "results.json").exists()
+    said = run_to_end(CENTRE_OUT, killed, env)
+    assert "centre-out targets, 2 networks" in said.stdout
+    same_centre_out_results(tmp_path / "full", killed)

@@ -191,6 +191,25 @@ def test_two_processes_train_and_search_like_one(tmp_path):
 
 
 @pytest.mark.slow
+def test_two_processes_train_the_centre_out_task_like_one(tmp_path):
+    """`jaxarm train --task centre-out-8` (eight targets, one epoch each) in two processes on 127.0.0.1 against this
+    process (two devices): the same runner, so the same results and trajectories."""
+    from jaxarm.cli import main
+
+    train = ["train", "--task", "centre-out-8", "--arm", "simple", "--networks", "3", "--epochs", "1", "--epoch-s",
+             "0.2", "--test-s", "0.2", "--seed", "0", "--no-progress"]
+    assert main([*train, "--out", str(tmp_path / "one")]) == 0
+    two_processes(train, tmp_path / "two", tmp_path)
+    a, b = (json.loads((tmp_path / n / "results.json").read_text()) for n in ("one", "two"))
+    for key in ("trained", "naive", "history_mean_over_networks_by_epoch", "test_rates_hz", "seeds"):
+        assert a[key] == b[key], key
+    assert b["timing"]["layout"]["processes"] == 2
+    ta, tb = (np.load(tmp_path / n / "trajectories.npz") for n in ("one", "two"))
+    for k in ta.files:
+        np.testing.assert_array_equal(ta[k], tb[k], err_msg=k)
+
+
+@pytest.mark.slow
 def test_two_processes_search_the_reaching_task_like_one(tmp_path):
     from jaxarm.cli import main
 
