@@ -6,7 +6,7 @@ the paper's network without the target code, trained and tested the same way.
                                      [--preset NAME] [--conditions target-code,control] [--out runs/centre-out]
 
 Every condition trains ``--networks`` networks (seeds SEED .. SEED + n - 1) in one batch of the runner
-(``jaxarm.run.Batch``: every device, checkpoints in OUT/CONDITION), epoch e toward target e % 8
+(``jaxarm.run.Runner``: every device, checkpoints in OUT/CONDITION), epoch e toward target e % 8
 (``jaxarm.task.centre_out``), then tests each network on all eight targets (1 s, no learning), and each untrained
 network the same way (naive). Prints the success count per target and the distribution of targets reached per
 network, and writes OUT/centre_out.json after each condition (a rerun skips the finished ones and resumes a killed

@@ -64,7 +64,7 @@ def _network_rows(seeds, metrics) -> list[dict]:
 
 
 def learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
-    """results.json's ``learning_curve`` from per-epoch tests (``Batch.learning_curve``: 1-based epoch ->
+    """results.json's ``learning_curve`` from per-epoch tests (``Runner.learning_curve``: 1-based epoch ->
     {"success", "min_distance_m"} per network, and "fresh_noise_success", "fresh_noise_min_distance_m" where the
     epochs were also tested on held-out noise) and the naive test's successes (epoch 0).
 
@@ -96,7 +96,7 @@ def learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
 
 def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
     """Write a run's results.json, history.npz, trajectories.npz and reach.png (process 0 only; every process returns
-    the results). ``run``: a :class:`~jaxarm.run.Batch` of one target (its ``learning_curve``, if it was tested
+    the results). ``run``: a :class:`~jaxarm.run.Runner` of one target (its ``learning_curve``, if it was tested
     after every epoch, becomes results.json's); the results and history are host arrays."""
     task = run.config.task
     dt = task.update_interval_s

@@ -3,15 +3,16 @@ task (:mod:`jaxarm.task.interface`: reaching, centre-out).
 
 Network i of a batch has the key ``PRNGKey(seeds[i])`` (its wiring, noise and babbling), metaparameter set ``mps[i]``
 and target data ``targets[i]`` (the task's :meth:`~jaxarm.task.interface.TaskInterface.network_target`: reaching's
-target, centre-out's schedule of targets); nothing else about the batch changes its results, so any network can be reproduced alone,
-in any batch, on any number of devices or processes (:mod:`jaxarm.parallel`). The batch's leading axis is split
-over the device mesh; one compiled ``epoch`` runs all of it, and an orbax checkpoint follows every epoch, so a killed
-run started again with the same command resumes from its last completed epoch and ends with the same bits.
+target, centre-out's schedule of targets); nothing else about the batch changes its results, so any network can be
+reproduced alone, in any batch, on any number of devices or processes (:mod:`jaxarm.parallel`). The batch's leading
+axis is split over the device mesh; one compiled ``epoch`` runs all of it, and an orbax checkpoint follows every epoch,
+so a killed run started again with the same command resumes from its last completed epoch and ends with the same bits.
 
 * :class:`Run`: one metaparameter set, one task (by default one target), networks ``seed .. seed + n - 1``
   (``jaxarm train``, ``--task`` reaching or centre-out-8).
 * :class:`SetsRun`: network i trains with set i (the paper's statistic: its top 30 sets, one network each).
-* :class:`Batch`: any list of (seed, set, target) rows, e.g. every network of a reproduction in one program.
+* :class:`Runner` (formerly ``Batch``, still a name of it): any list of (seed, set, target) rows and any task, e.g.
+  every network of a reproduction in one program; :class:`Run` and :class:`SetsRun` are runners of given rows.
 """
 from __future__ import annotations
 
@@ -140,7 +141,7 @@ def describe_differences(saved: dict, now: dict, most: int = 4) -> str:
 
 
 def curve_entry(result: TestResult, held_out: TestResult | None = None) -> dict:
-    """What :meth:`Batch.train` keeps of the tests after an epoch by default: per network, success and closest
+    """What :meth:`Runner.train` keeps of the tests after an epoch by default: per network, success and closest
     approach (m) on the network's own noise stream (the one R-STDP trains on, as the original tests) and, with
     ``held_out``, the same on a stream no rule trains on (:func:`jaxarm.train.fresh_noise` with ``j = 0``)."""
     entry = {"success": np.asarray(result.success).tolist(),
@@ -151,13 +152,13 @@ def curve_entry(result: TestResult, held_out: TestResult | None = None) -> dict:
     return entry
 
 
-class Batch:
-    """Networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and target data ``targets[i]`` (stacked: each
-    network's ``task.network_target()``, or another target of the same shape), trained with one configuration into
-    ``out`` (checkpoints in ``out/checkpoints``). ``description``: the JSON identity of the batch (what a checkpoint
-    must match to be resumed). ``mesh``: the devices (default: all of them). ``task``: what the epochs train toward
-    and what the test tests (:mod:`jaxarm.task.interface`; default ``config.task``, reaching); ``config.task`` is
-    taken as ``task.task_config()``."""
+class Runner:
+    """The one runner of every task: networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and target data
+    ``targets[i]`` (stacked: each network's ``task.network_target()``, or another target of the same shape), trained
+    with one configuration into ``out`` (checkpoints in ``out/checkpoints``). ``description``: the JSON identity of
+    the batch (what a checkpoint must match to be resumed). ``mesh``: the devices (default: all of them). ``task``:
+    what the epochs train toward and what the test tests (:mod:`jaxarm.task.interface`; default ``config.task``,
+    reaching); ``config.task`` is taken as ``task.task_config()``."""
 
     def __init__(self, config: LoopConfig, seeds, mps: MetaParams, targets: Target, out: Path, description: dict,
                  mesh=None, record=None, task: TaskInterface | None = None):
@@ -418,7 +419,7 @@ class Batch:
             return self._restore(ckpt, carry, history, ckpt.read_meta())
 
 
-class Run(Batch):
+class Run(Runner):
     """One task: networks ``seed .. seed + n - 1`` trained with one metaparameter set ``mp``. ``task``: default
     ``config.task`` (reaching, one target); another (:class:`jaxarm.task.centre_out.CentreOut`) is recorded in the
     description as ``task``: its :meth:`~jaxarm.task.interface.TaskInterface.identity`."""
@@ -446,7 +447,7 @@ class Run(Batch):
         return {k: v for k, v in super().meta().items() if k != "label"}
 
 
-class SetsRun(Batch):
+class SetsRun(Runner):
     """N networks, network i (key ``PRNGKey(seed + i)``) trained and tested with metaparameter set i.
 
     ``mps`` is a :class:`MetaParams` stacked along a leading axis of length N
@@ -465,6 +466,10 @@ class SetsRun(Batch):
 
     def meta(self) -> dict:
         return {k: v for k, v in super().meta().items() if k != "label"}
+
+
+#: The runner's former name (callers written before it ran any task).
+Batch = Runner
 
 
 def _progress(total, initial, enabled, desc):
@@ -489,5 +494,5 @@ def select(rows: slice, trained: TestResult, naive: TestResult, history: EpochSu
                 jax.tree.map(lambda x: x[:, rows], history))
 
 
-__all__ = ["Batch", "Run", "SetsRun", "compiled", "network_keys", "network_config", "stack_rows", "unstack",
+__all__ = ["Runner", "Batch", "Run", "SetsRun", "compiled", "network_keys", "network_config", "stack_rows", "unstack",
            "NETWORK_OPTIONS", "select", "Rows"]

@@ -1,5 +1,5 @@
 """Training and testing on the centre-out task (:class:`jaxarm.task.centre_out.CentreOut`) through the one runner
-(:class:`jaxarm.run.Batch`: every device, groups, checkpoints after every epoch, kill -9 resume, several processes):
+(:class:`jaxarm.run.Runner`: every device, groups, checkpoints after every epoch, kill -9 resume, several processes):
 epoch e trains toward target e % n (the task's :meth:`~jaxarm.task.centre_out.CentreOut.epoch`), every network is
 tested on every target; its results (:func:`summary`, :func:`write_outputs`), and the comparison with a control
 network without the target code (:func:`run_with_control`).
@@ -25,7 +25,7 @@ import numpy as np
 
 from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
-from jaxarm.run import Batch, stack_rows
+from jaxarm.run import Runner, stack_rows
 from jaxarm.task.centre_out import CentreOut, ensure_target_code
 from jaxarm.task.config import Target
 from jaxarm.train import make_train
@@ -61,13 +61,13 @@ def make_centre_out_train(config, task: CentreOut = CentreOut(), record=None) ->
     return CentreOutFns(train=train, test=test, fns=fns)
 
 
-def batch(config, task: CentreOut, seeds, mp, out, mesh=None) -> Batch:
+def batch(config, task: CentreOut, seeds, mp, out, mesh=None) -> Runner:
     """The runner's batch of one network per seed (key ``PRNGKey(seed)``), each trained with ``mp`` on ``task``
     into ``out`` (checkpoints in ``out/checkpoints``)."""
     seeds = [int(s) for s in seeds]
     n = len(seeds)
     target = task.network_target()
-    return Batch(config, seeds, stack_rows([mp] * n), Target(*(np.stack([np.asarray(x, np.float32)] * n)
+    return Runner(config, seeds, stack_rows([mp] * n), Target(*(np.stack([np.asarray(x, np.float32)] * n)
                                                               for x in target)), out,
                  {"arm": config.arm, "backend": config.backend, "task": task.identity(), "seeds": seeds,
                   "metaparams": mp.to_dict(), "label": f"{config.arm}/centre-out"}, mesh, task=task)
@@ -80,7 +80,7 @@ def _per_network(x) -> np.ndarray:
 
 
 def summary(task: CentreOut, spec, seeds, history, res, naive) -> dict:
-    """The task's results from host arrays (``history`` (epochs, networks, ...) as :meth:`jaxarm.run.Batch.train`
+    """The task's results from host arrays (``history`` (epochs, networks, ...) as :meth:`jaxarm.run.Runner.train`
     returns it; ``res``, ``naive``: TestResults (networks, targets, ...)): success per (network, target), counts per
     target (trained and naive), the distribution of targets reached per network, median closest approach per target
     (cm), hand paths (m) under ``trained["hand_m"]`` and ``naive["hand_m"]``."""
@@ -129,10 +129,10 @@ def _jsonable(x):
     return x.item() if isinstance(x, np.generic) else x
 
 
-def write_outputs(run: Batch, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None) -> dict:
+def write_outputs(run: Runner, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None) -> dict:
     """``jaxarm train --task centre-out-8``'s results.json (:func:`summary`, the configuration, the timing) and
     trajectories.npz (hand paths (networks, targets, samples, 2), trained and naive; the targets; the seeds), written
-    by process 0; every process returns the results. ``run``: a :class:`~jaxarm.run.Batch` of a CentreOut task."""
+    by process 0; every process returns the results. ``run``: a :class:`~jaxarm.run.Runner` of a CentreOut task."""
     task = run.task
     r = summary(task, run.config.network.spec, run.seeds, history, trained_res, naive_res)
     hands = {k: r[k].pop("hand_m") for k in ("trained", "naive")}

@@ -112,7 +112,7 @@ def _train_together(groups: list, out: Path, progress: bool, stop_after: int | N
     are all finished is reused. Returns {folder: (results, timing)} or None when ``stop_after`` stopped it early."""
     from jaxarm.checkpoint import Checkpointer
     from jaxarm.experiment import write_outputs
-    from jaxarm.run import Batch, select, stack_rows, unstack
+    from jaxarm.run import Runner, select, stack_rows, unstack
     from jaxarm.task.config import Target
 
     done = {g.out: _finished(g) for g in groups}
@@ -125,7 +125,7 @@ def _train_together(groups: list, out: Path, progress: bool, stop_after: int | N
     for g in groups:
         rows.append(slice(start, start + g.n))
         start += g.n
-    batch = Batch(first.config, [s for g in groups for s in g.seeds],
+    batch = Runner(first.config, [s for g in groups for s in g.seeds],
                   stack_rows([m for g in groups for m in unstack(g.mps)]),
                   Target(*(np.concatenate(parts) for parts in zip(*(g.targets for g in groups)))), out,
                   {"reproduction": [{"folder": os.path.relpath(g.out, out), **g.meta()} for g in groups],

@@ -134,7 +134,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.paper.reproduce import shared_epochs
-    from jaxarm.run import Batch, stack_rows
+    from jaxarm.run import Runner, stack_rows
     from jaxarm.task.config import Target, TaskConfig
 
     if not 1 <= seeds <= 1024:
@@ -166,7 +166,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
     if finished is not None:
         log(f"{out / RANKING_FILE}: this ranking finished earlier, reused")
         return finished
-    batch = Batch(config, new_seeds * len(sets), stack_rows([m for m in mps for _ in range(seeds)]),
+    batch = Runner(config, new_seeds * len(sets), stack_rows([m for m in mps for _ in range(seeds)]),
                   Target.stack([config.task.target] * n), out,
                   {"rerank": {k: v for k, v in identity.items() if k not in ("earlier", "rank_by")},
                    "label": f"{arm}/{target}: {len(sets)} sets x {seeds} seeds"})
