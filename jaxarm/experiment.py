@@ -41,7 +41,7 @@ from jaxarm.learning.metaparams import MetaParams
 from jaxarm.learning.registry import DEFAULT, RULES, rule_from_meta
 from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig
-from jaxarm.run import Run, SetsRun, add_network_arguments, network_config
+from jaxarm.run import Run, SetsRun, add_network_arguments, learning_curve, network_config
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
 from jaxarm.task.registry import DEFAULT as TASK_DEFAULT, TASKS
 from jaxarm.train import fresh_noise
@@ -61,37 +61,6 @@ def _network_rows(seeds, metrics) -> list[dict]:
             row[k] = bool(x) if k == "success" else (None if np.isnan(x) else round(float(x), 5))
         rows.append(row)
     return rows
-
-
-def learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
-    """results.json's ``learning_curve`` from per-epoch tests (``Runner.learning_curve``: 1-based epoch ->
-    {"success", "min_distance_m"} per network, and "fresh_noise_success", "fresh_noise_min_distance_m" where the
-    epochs were also tested on held-out noise) and the naive test's successes (epoch 0).
-
-    ``criterion_s`` per network: the training time (network-seconds) after which its test first succeeded: 0 if the
-    naive network already reaches, None if no tested epoch reached or if an epoch before the first success was not
-    tested (a run resumed with ``--test-each-epoch`` after training without it). ``fresh_noise_*``: the same on
-    held-out noise, where every tested epoch has it."""
-    epochs = sorted(curve)
-    complete = epochs == list(range(1, len(epochs) + 1))
-
-    def curve_of(prefix: str) -> dict:
-        success = np.asarray([curve[e][prefix + "success"] for e in epochs], bool)      # (epochs, networks)
-        closest = np.asarray([curve[e][prefix + "min_distance_m"] for e in epochs], float)
-        criterion = []
-        for i, naive in enumerate(np.asarray(naive_success, bool)):
-            hits = np.nonzero(success[:, i])[0]
-            # sorted epochs from 1: epochs[j] == j + 1 means every epoch up to the first success was tested
-            first = 0 if naive else (epochs[hits[0]] if hits.size and epochs[hits[0]] == hits[0] + 1 else None)
-            criterion.append(None if first is None else round(first * epoch_s, 3))
-        return {prefix + "success_count": success.sum(axis=1).tolist(),
-                prefix + "median_min_distance_m": np.median(closest, axis=1).round(5).tolist(),
-                prefix + "criterion_s": criterion}
-
-    out = {"epochs": epochs, "epoch_s": epoch_s, "complete": complete} | curve_of("")
-    if all("fresh_noise_success" in curve[e] for e in epochs):
-        out |= curve_of("fresh_noise_")
-    return out
 
 
 def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None):
@@ -383,7 +352,7 @@ def train_main(argv: list[str] | None = None) -> int:
                          "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
                          "epoch, a target code added to the network unless --network has one, every network tested "
                          "on every target (jaxarm.run_centre_out; checkpoints, resume and --coordinator as "
-                         "reaching; no --record-spikes or --test-each-epoch yet)")
+                         "reaching; no --record-spikes yet)")
     ap.add_argument("--test-each-epoch", action="store_true",
                     help="also test every network after every epoch: results.json's learning_curve (successes per "
                          "epoch, and per network the training seconds until its test first succeeded)")
@@ -396,8 +365,8 @@ def train_main(argv: list[str] | None = None) -> int:
         ap.error(str(e))
     _check(ap, args)
     try:
-        if args.task != TASK_DEFAULT and (args.record_spikes or args.record_train_s or args.test_each_epoch):
-            raise ConfigError(f"--task {args.task}: without --record-spikes or --test-each-epoch (not yet)")
+        if args.task != TASK_DEFAULT and (args.record_spikes or args.record_train_s):
+            raise ConfigError(f"--task {args.task}: without --record-spikes (not yet)")
         parallel_cli.start_from_arguments(args)
         configs = _configs(args)
         overrides = _parse_overrides(args.overrides)

@@ -152,6 +152,37 @@ def curve_entry(result: TestResult, held_out: TestResult | None = None) -> dict:
     return entry
 
 
+def learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
+    """results.json's ``learning_curve`` from per-epoch tests (``Runner.learning_curve``: 1-based epoch ->
+    {"success", "min_distance_m"} per network, and "fresh_noise_success", "fresh_noise_min_distance_m" where the
+    epochs were also tested on held-out noise) and the naive test's successes (epoch 0).
+
+    ``criterion_s`` per network: the training time (network-seconds) after which its test first succeeded: 0 if the
+    naive network already reaches, None if no tested epoch reached or if an epoch before the first success was not
+    tested (a run resumed with ``--test-each-epoch`` after training without it). ``fresh_noise_*``: the same on
+    held-out noise, where every tested epoch has it."""
+    epochs = sorted(curve)
+    complete = epochs == list(range(1, len(epochs) + 1))
+
+    def curve_of(prefix: str) -> dict:
+        success = np.asarray([curve[e][prefix + "success"] for e in epochs], bool)      # (epochs, networks)
+        closest = np.asarray([curve[e][prefix + "min_distance_m"] for e in epochs], float)
+        criterion = []
+        for i, naive in enumerate(np.asarray(naive_success, bool)):
+            hits = np.nonzero(success[:, i])[0]
+            # sorted epochs from 1: epochs[j] == j + 1 means every epoch up to the first success was tested
+            first = 0 if naive else (epochs[hits[0]] if hits.size and epochs[hits[0]] == hits[0] + 1 else None)
+            criterion.append(None if first is None else round(first * epoch_s, 3))
+        return {prefix + "success_count": success.sum(axis=1).tolist(),
+                prefix + "median_min_distance_m": np.median(closest, axis=1).round(5).tolist(),
+                prefix + "criterion_s": criterion}
+
+    out = {"epochs": epochs, "epoch_s": epoch_s, "complete": complete} | curve_of("")
+    if all("fresh_noise_success" in curve[e] for e in epochs):
+        out |= curve_of("fresh_noise_")
+    return out
+
+
 class Runner:
     """The one runner of every task: networks ``seeds[i]`` with metaparameters ``mps[i]`` (stacked) and target data
     ``targets[i]`` (stacked: each network's ``task.network_target()``, or another target of the same shape), trained
@@ -494,5 +525,5 @@ def select(rows: slice, trained: TestResult, naive: TestResult, history: EpochSu
                 jax.tree.map(lambda x: x[:, rows], history))
 
 
-__all__ = ["Runner", "Batch", "Run", "SetsRun", "compiled", "network_keys", "network_config", "stack_rows", "unstack",
-           "NETWORK_OPTIONS", "select", "Rows"]
+__all__ = ["Runner", "Batch", "Run", "SetsRun", "learning_curve", "compiled", "network_keys", "network_config",
+           "stack_rows", "unstack", "NETWORK_OPTIONS", "select", "Rows"]

@@ -25,7 +25,7 @@ import numpy as np
 
 from jaxarm import parallel
 from jaxarm.config.validate import ConfigError
-from jaxarm.run import Runner, stack_rows
+from jaxarm.run import Runner, learning_curve, stack_rows
 from jaxarm.task.centre_out import CentreOut, ensure_target_code
 from jaxarm.task.config import Target
 from jaxarm.train import make_train
@@ -129,6 +129,19 @@ def _jsonable(x):
     return x.item() if isinstance(x, np.generic) else x
 
 
+def _learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
+    """:func:`jaxarm.run.learning_curve` of tests after every epoch (``--test-each-epoch``) on every target: each
+    (network, target) test counted as reaching's one test per network, so ``success_count`` (per epoch) counts the
+    tests that reached of networks x targets, and ``criterion_s`` is (networks, targets): the training time after
+    which that network's test on that target first succeeded."""
+    n, k = np.shape(naive_success)
+    flat = {e: {name: np.asarray(v).reshape(-1).tolist() for name, v in c.items()} for e, c in curve.items()}
+    out = learning_curve(flat, np.asarray(naive_success).reshape(-1), epoch_s)
+    for name in [m for m in out if m.endswith("criterion_s")]:
+        out[name] = [out[name][i * k:(i + 1) * k] for i in range(n)]
+    return out
+
+
 def write_outputs(run: Runner, trained_res, naive_res, history, wall_s, epochs_run, compile_s=None) -> dict:
     """``jaxarm train --task centre-out-8``'s results.json (:func:`summary`, the configuration, the timing) and
     trajectories.npz (hand paths (networks, targets, samples, 2), trained and naive; the targets; the seeds), written
@@ -142,6 +155,8 @@ def write_outputs(run: Runner, trained_res, naive_res, history, wall_s, epochs_r
                           "compile_s": None if compile_s is None else round(compile_s, 2),
                           "device": jax.default_backend(), "layout": parallel.describe()},
                "config": {"loop": _jsonable(dataclasses.asdict(run.config)), **run.meta()}}
+    if run.learning_curve:
+        results["learning_curve"] = _learning_curve(run.learning_curve, naive_res.success, task.epoch_duration_s)
     if parallel.is_main_process():
         run.out.mkdir(parents=True, exist_ok=True)
         (run.out / "results.json").write_text(json.dumps(results, indent=1))

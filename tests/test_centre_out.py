@@ -85,8 +85,11 @@ def test_the_command_line_trains_and_tests_the_eight_targets(tmp_path):
 
     out = tmp_path / "co"
     assert main(["train", "--task", "centre-out-8", "--networks", "2", "--epochs", "1", "--epoch-s", "0.2",
-                 "--test-s", "0.2", "--out", str(out)]) == 0
+                 "--test-s", "0.2", "--test-each-epoch", "--out", str(out)]) == 0
     r = json.loads((out / "results.json").read_text())
+    curve = r["learning_curve"]            # every network tested on every target after every epoch
+    assert curve["epochs"] == list(range(1, 9)) and len(curve["success_count"]) == 8
+    assert np.shape(curve["criterion_s"]) == (2, 8) and np.shape(curve["fresh_noise_criterion_s"]) == (2, 8)
     assert r["targets"] == list(CENTRE_OUT_8) and len(r["trained"]["success"]) == 2
     assert sum(r["trained"]["targets_reached_per_network"]) == 2
     spec = r["config"]["loop"]["network"]["spec"]
