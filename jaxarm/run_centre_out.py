@@ -200,6 +200,9 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
     if done.get("description") != json.loads(json.dumps(description)):
         done = {}
     result = {**(meta or {}), "description": description, "conditions": done.get("conditions", {})}
+    main = parallel.is_main_process()        # with several processes (--coordinator) process 0 writes and says
+    log = log if main else (lambda *a, **k: None)
+    parallel.barrier("centre-out-read")      # every process has read the file before process 0 writes it
     out.mkdir(parents=True, exist_ok=True)
     for name in conditions:
         if name in result["conditions"]:
@@ -214,7 +217,8 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
                  network_seconds=len(r["seeds"]) * task.task_config().epochs * task.epoch_duration_s,
                  wall_s=round(time.perf_counter() - t0, 1))
         result["conditions"][name] = r
-        path.write_text(json.dumps(result, indent=1))
+        if main:
+            path.write_text(json.dumps(result, indent=1))
         log(f"{name}: trained and tested in {r['wall_s']} s ({r['network_seconds']:g} network-s); lost spikes "
             f"{r['lost_spikes']}")
     return result

@@ -210,6 +210,24 @@ def test_two_processes_train_the_centre_out_task_like_one(tmp_path):
 
 
 @pytest.mark.slow
+def test_two_processes_reproduce_the_centre_out_comparison_like_one(tmp_path):
+    """`jaxarm reproduce --task centre-out-8` (the target-code network and its control, through the runner) in two
+    processes: the same centre_out.json conditions and table as one process."""
+    from jaxarm.cli import main
+
+    args = ["reproduce", "--task", "centre-out-8", "--arm", "simple", "--networks", "2", "--epochs", "1",
+            "--epoch-s", "0.2", "--test-s", "0.2", "--no-progress"]
+    assert main([*args, "--out", str(tmp_path / "one")]) == 0
+    two_processes(args, tmp_path / "two", tmp_path)
+    a, b = (json.loads((tmp_path / n / "centre_out.json").read_text())["conditions"] for n in ("one", "two"))
+    assert set(a) == set(b) == {"target-code", "control"}
+    for name in a:
+        for key in ("trained", "naive", "history_mean_over_networks_by_epoch", "test_rates_hz"):
+            assert a[name][key] == b[name][key], (name, key)
+    assert (tmp_path / "one" / "centre_out.md").read_text() == (tmp_path / "two" / "centre_out.md").read_text()
+
+
+@pytest.mark.slow
 def test_two_processes_search_the_reaching_task_like_one(tmp_path):
     from jaxarm.cli import main
 

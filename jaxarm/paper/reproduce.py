@@ -570,8 +570,9 @@ def reproduce_main(argv: list[str] | None = None) -> int:
 
 def _reproduce_centre_out(args, preset, argv) -> int:
     """``jaxarm reproduce --task centre-out-8``: :func:`jaxarm.run_centre_out.run_with_control` with the preset's
-    best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; one process
-    (every device of it, through the runner); a rerun skips the finished condition and resumes a killed one."""
+    best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; every device
+    of every process (``--coordinator``), through the runner; a rerun skips the finished condition and resumes a
+    killed one."""
     from jaxarm.experiment import _parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
@@ -582,15 +583,14 @@ def _reproduce_centre_out(args, preset, argv) -> int:
     if args.targets is not None or args.top != preset_lib.MAX_TOP or args.backend != "fast":
         raise ConfigError("--task centre-out-8 takes the eight targets, the preset's best set only and the fast "
                           "backend (no --targets, --top, --backend)")
-    if args.coordinator or args.num_processes:
-        raise ConfigError("--task centre-out-8 runs in one process (no --coordinator yet)")
     task = CentreOut(epochs_per_target=3 if args.epochs is None else args.epochs, epoch_duration_s=args.epoch_s,
                      test_duration_s=args.test_s)
     net = network_config_of(args)
     if args.dt_ms is not None:
         net = dataclasses.replace(net, dt_ms=args.dt_ms)
     mp = MetaParams.from_dict({**(preset.best if preset is not None else {}), **_parse_overrides(args.overrides)})
-    print(f"{args.arm} arm, eight centre-out targets: {args.networks} networks per condition (target code, "
+    say = print if parallel.is_main_process() else (lambda *a, **k: None)
+    say(f"{args.arm} arm, eight centre-out targets: {args.networks} networks per condition (target code, "
           f"control), {task.epochs_per_target} x {task.epoch_duration_s:g} s per target, cycled "
           f"({task.task_config().epochs} epochs), metaparameters "
           f"{'of preset ' + preset.name if preset is not None else 'of the authors'} -> {args.out}")
@@ -600,8 +600,9 @@ def _reproduce_centre_out(args, preset, argv) -> int:
                                   range(args.seed, args.seed + args.networks), mp, args.out, meta=meta,
                                   progress=not args.no_progress)
         table = table_markdown(result)
-        (args.out / "centre_out.md").write_text(table + "\n")
-    print(table)
+        if parallel.is_main_process():
+            (args.out / "centre_out.md").write_text(table + "\n")
+    say(table)
     return 0
 
 
