@@ -2,6 +2,8 @@
 bit, the registry feeds the configuration and the command line, and weight perturbation, a rule of one module,
 climbs a finite-difference slope and trains end to end on both arms."""
 import json
+import re
+from pathlib import Path
 from types import SimpleNamespace
 from typing import Any, NamedTuple
 
@@ -297,3 +299,49 @@ def test_jaxarm_train_learning_weight_perturbation_trains_and_retests(arm, tmp_p
     again = json.loads((out / "test" / "results.json").read_text())
     assert [n["min_distance_m"] for n in again["networks"]] == [n["min_distance_m"] for n in res["networks"]]
     capsys.readouterr()
+
+
+# ---- docs/extending.md's worked examples ---------------------------------------------------------------------------
+
+def extending_blocks() -> list[str]:
+    """The python blocks of docs/extending.md, in order: the new rule, the new arm."""
+    page = (Path(__file__).resolve().parents[1] / "docs" / "extending.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", page, flags=re.S)
+    assert len(blocks) == 2, len(blocks)
+    return blocks
+
+
+def test_the_worked_example_of_docs_extending_runs(capsys):
+    # the page's python block as written: a rule defined, registered, trained and tested (two networks, 2 x 1 s)
+    block = extending_blocks()[0]
+    scope = {"__name__": "extending"}
+    try:
+        exec(compile(block, "docs/extending.md", "exec"), scope)
+    finally:
+        RULES.pop("critic-hebb", None)
+    history, trained = scope["history"], scope["trained"]
+    assert int(np.sum(history.rewards + history.punishments)) > 0                 # the critic spoke
+    assert float(jnp.abs(trained.wgain - 1.0).max()) > 0.01                          # and the gains moved
+    assert "closest approach in the test" in capsys.readouterr().out
+
+
+@pytest.mark.slow   # a third compiled loop: the default suite's 8-minute budget
+def test_the_new_arm_of_docs_extending_trains_and_moves_with_inertia(capsys):
+    # the page's second block as written: an arm defined, registered, trained and tested (two networks, 2 x 1 s)
+    from jaxarm.arm.registry import ARMS
+
+    scope = {"__name__": "extending"}
+    try:
+        exec(compile(extending_blocks()[1], "docs/extending.md", "exec"), scope)
+    finally:
+        ARMS.pop("inertial", None)
+    arm, result = scope["InertialArm"](), scope["result"]
+    assert "closest approach in the test" in capsys.readouterr().out
+    assert np.all(np.isfinite(np.asarray(result.hand_m)))
+    # inertia by hand: one full flexor command from rest moves the shoulder by gain x dt / tau (not by gain)
+    s = arm.step(arm.init(jnp.array([0.62, 1.53])), jnp.array([0.0, 1.0, 0.0, 0.0]))
+    gain, dt, tau = arm.config.gain_rad, arm.dt_s, arm.config.tau_s
+    assert float(s.q[0]) == pytest.approx(0.62 + gain / dt * (dt / tau) * dt, rel=1e-5)
+    # and, commanded to stop, it keeps moving (a first-order lag): the second step still moves the shoulder
+    s2 = arm.step(s, jnp.zeros(4))
+    assert float(s2.q[0]) > float(s.q[0])
