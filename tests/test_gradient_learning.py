@@ -133,6 +133,7 @@ def test_readout_and_arm_gradient_matches_richardson_differences(kind):
     assert np.linalg.norm(ad - ref) <= 1e-3 * np.linalg.norm(ref), (ad, ref)
 
 
+@pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget (46 s: two compiled programs)
 def test_train_by_gradient_then_retest_from_the_folder(tmp_path, capsys):
     # One network, one epoch of two 0.3 s reaches on the simple arm, a 0.3 s test: the command trains, records how,
     # and a re-test of the folder (its checkpoint holds Adam's state too) gives the same test.
