@@ -304,10 +304,10 @@ def test_jaxarm_train_learning_weight_perturbation_trains_and_retests(arm, tmp_p
 # ---- docs/extending.md's worked examples ---------------------------------------------------------------------------
 
 def extending_blocks() -> list[str]:
-    """The python blocks of docs/extending.md, in order: the new rule, the new arm."""
+    """The python blocks of docs/extending.md, in order: the new rule, the new arm, the new task."""
     page = (Path(__file__).resolve().parents[1] / "docs" / "extending.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", page, flags=re.S)
-    assert len(blocks) == 2, len(blocks)
+    assert len(blocks) == 3, len(blocks)
     return blocks
 
 
@@ -345,3 +345,27 @@ def test_the_new_arm_of_docs_extending_trains_and_moves_with_inertia(capsys):
     # and, commanded to stop, it keeps moving (a first-order lag): the second step still moves the shoulder
     s2 = arm.step(s, jnp.zeros(4))
     assert float(s2.q[0]) > float(s.q[0])
+
+
+@pytest.mark.slow   # a compiled loop of its own: the default suite's 8-minute budget
+def test_the_new_task_of_docs_extending_trains_through_the_runner(capsys):
+    # the page's third block as written: a curriculum task trained and tested by the runner (two networks, 2 x 1 s)
+    from jaxarm.arm.base import hand_position
+    from jaxarm.task.config import Target
+
+    scope = {"__name__": "extending"}
+    exec(compile(extending_blocks()[2], "docs/extending.md", "exec"), scope)
+    assert "closest approach to the real target" in capsys.readouterr().out
+    assert np.all(np.isfinite(np.asarray(scope["result"].min_distance_m)))
+    # the schedule by hand: epoch 0 trains toward the joint-space midpoint, epoch 1 (of a ramp of 2) the target
+    task = scope["task"]
+    seen = []
+    epoch = task.epoch(lambda carry, mp, target: seen.append(target))
+    real = task.network_target()
+    q0 = np.asarray(task.reach.start_posture_rad, np.float32)
+    for e, f in ((0, 0.5), (1, 1.0), (5, 1.0)):
+        epoch(SimpleNamespace(epoch=jnp.int32(e)), None, Target(jnp.asarray(real.xy_m), jnp.asarray(real.q_rad)))
+        q = q0 + f * (np.asarray(real.q_rad) - q0)
+        np.testing.assert_allclose(np.asarray(seen[-1].q_rad), q, rtol=1e-6)
+        np.testing.assert_allclose(np.asarray(seen[-1].xy_m), np.asarray(hand_position(q)), atol=1e-6)
+    np.testing.assert_allclose(np.asarray(seen[-1].xy_m), np.asarray(real.xy_m), atol=1e-6)
