@@ -416,9 +416,10 @@ def _train_targets(ap, args, configs, mp, record) -> int:
             run = Run(cfg, args.networks, args.seed, out, mp, record=record, task=task)
         except ConfigError as e:
             ap.error(str(e))
-        if parallel.is_main_process():
+        if parallel.is_main_process():   # on stderr, with the progress bar: stdout keeps the results' lines
             print(parallel.padding_note(run.n, f"{run.n} networks", run.mesh.size, run.at_once,
-                                        jax.process_count(), ("--networks", lambda v: v, run.n)), flush=True)
+                                        jax.process_count(), ("--networks", lambda v: v, run.n)), file=sys.stderr,
+                  flush=True)
         carry, history, wall, epochs_run, compile_s = run.train(progress=not args.no_progress,
                                                                 test_each_epoch=args.test_each_epoch)
         res = write(run, run.test(carry.trained), run.test(run.naive(), "naive test"), history, wall, epochs_run,

@@ -116,7 +116,7 @@ def test_train_cli_writes_results(tmp_path, capsys):
     assert (out / "reach.png").stat().st_size > 0
     # the layout line (jaxarm.parallel.padding_note): 2 networks on the suite's 2 devices in groups of 8
     assert ("2 networks: on 2 devices in groups of 8, padded to 16: 87.5 % of what runs is padding (computed and "
-            "dropped); --networks 16 fills the groups (16 networks)") in capsys.readouterr().out
+            "dropped); --networks 16 fills the groups (16 networks)") in capsys.readouterr().err
     # re-test the trained networks with another readout gain: same weights, other metaparameter
     assert main(["test", "--from", str(out), "--set", "v_em_max=30", "--out", str(tmp_path / "t30")]) == 0
     t30 = json.loads((tmp_path / "t30" / "results.json").read_text())
