@@ -137,7 +137,9 @@ def plot_curves(out: Path, arm: str, conditions) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(TARGETS), figsize=(4.2 * len(TARGETS), 3.4), sharey=True, layout="constrained")
+    fig, axes = plt.subplots(1, len(TARGETS), figsize=(4.2 * len(TARGETS), 3.4), sharey=True, layout="constrained",
+                             squeeze=False)
+    axes = axes[0]
     for ax, target in zip(axes, TARGETS):
         for condition in conditions:
             res = json.loads((out / arm / condition / target / "results.json").read_text())
