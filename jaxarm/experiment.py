@@ -416,7 +416,7 @@ def _train_targets(ap, args, configs, mp, record) -> int:
             run = Run(cfg, args.networks, args.seed, out, mp, record=record, task=task)
         except ConfigError as e:
             ap.error(str(e))
-        if parallel.is_main_process():   # on stderr, with the progress bar: stdout keeps the results' lines
+        if parallel.is_main_process() and not args.no_progress:   # on stderr with the progress bar, silenced with it
             print(parallel.padding_note(run.n, f"{run.n} networks", run.mesh.size, run.at_once,
                                         jax.process_count(), ("--networks", lambda v: v, run.n)), file=sys.stderr,
                   flush=True)

@@ -99,7 +99,7 @@ def test_train_cli_writes_results(tmp_path, capsys):
 
     out = tmp_path / "run"
     assert main(["train", "--networks", "2", "--epochs", "1", "--epoch-s", "0.3", "--test-s", "0.3",
-                 "--set", "v_em_max=60", "--out", str(out), "--no-progress"]) == 0
+                 "--set", "v_em_max=60", "--out", str(out)]) == 0
     res = json.loads((out / "results.json").read_text())
     assert res["config"]["metaparams"]["v_em_max"] == 60.0
     assert res["config"]["metaparams"]["learn_rate"] == pytest.approx(0.04)   # the rest: the authors' values
@@ -114,7 +114,7 @@ def test_train_cli_writes_results(tmp_path, capsys):
     assert hist["mean_wgain"][0, :, es_es].mean() == pytest.approx(res["history"]["mean_wgain"]["ES->ES"][0], abs=1e-4)
     assert hist["rates_last10s_hz"].shape == (1, 2, 6) and hist["rewards"].shape == (1, 2)
     assert (out / "reach.png").stat().st_size > 0
-    # the layout line (jaxarm.parallel.padding_note): 2 networks on the suite's 2 devices in groups of 8
+    # the layout line (jaxarm.parallel.padding_note; with the progress bar): 2 networks on 2 devices, groups of 8
     assert ("2 networks: on 2 devices in groups of 8, padded to 16: 87.5 % of what runs is padding (computed and "
             "dropped); --networks 16 fills the groups (16 networks)") in capsys.readouterr().err
     # re-test the trained networks with another readout gain: same weights, other metaparameter
