@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-from dataclasses import asdict
 from pathlib import Path
 
 import jax
@@ -103,7 +102,7 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
                    "compile_s": None if compile_s is None else round(compile_s, 2),
                    "network_s_per_s": round(epochs_run * task.epoch_duration_s * run.n / wall_s, 2) if wall_s else None,
                    "device": jax.default_backend(), "layout": parallel.describe()},
-        "config": {"loop": _jsonable(asdict(run.config)), **run.meta()},
+        "config": run.config_record(),
     }
     if run.learning_curve:
         results["learning_curve"] = learning_curve(run.learning_curve, m_nv["success"], task.epoch_duration_s)
@@ -211,16 +210,6 @@ def record_config(args):
         return None
     return RecordConfig(max_rate_hz=args.record_max_rate_hz, max_mb=args.record_max_mb, train_last_s=train_s,
                         epochs=tuple(getattr(args, "record_epochs", ()) or ()), networks=tuple(args.record_networks))
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.generic,)):
-        return x.item()
-    return x
 
 
 def plot_reach(path, t, hand, naive_hand, target, radius, title):
@@ -508,6 +497,8 @@ def test_main(argv: list[str] | None = None) -> int:
     add_record_arguments(ap, train=False)
     parallel_cli.add_arguments(ap)
     args = ap.parse_args(argv)
+    if args.fresh_noise is not None and args.fresh_noise < 0:   # refused before any work
+        ap.error(f"--fresh-noise = {args.fresh_noise}: must be >= 0")
     try:
         parallel_cli.start_from_arguments(args)
         overrides = _parse_overrides(args.overrides)
@@ -536,11 +527,10 @@ def test_main(argv: list[str] | None = None) -> int:
                      "yet)")
         task = CentreOut(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["task"].items()
                             if k != "name"}, test_duration_s=args.test_s or 1.0)
-        meta = meta | {"target": task.targets[0]}
-    tc = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
-                    test_duration_s=args.test_s or 1.0, test_em_noise_events=args.test_em_noise_events)
-    if task is not None:
         tc = task.task_config()
+    else:
+        tc = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
+                        test_duration_s=args.test_s or 1.0, test_em_noise_events=args.test_em_noise_events)
     # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
     network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
                              | ({"crossing": args.crossing} if args.crossing else {}))
@@ -571,8 +561,6 @@ def _test_into(ap, args, meta, cfg, out, record, overrides, task=None) -> int:
         run.override(overrides)
     trained, naive = carry.trained, run.naive()
     if args.fresh_noise is not None:
-        if args.fresh_noise < 0:
-            ap.error(f"--fresh-noise = {args.fresh_noise}: must be >= 0")
         trained, naive = (fresh_noise(t, args.fresh_noise) for t in (trained, naive))
     write, said = _task_outputs("reaching" if task is None else "centre-out-8")
     res = write(run, run.test(trained), run.test(naive, "naive test"), history, 0.0, 0)

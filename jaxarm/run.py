@@ -34,14 +34,12 @@ from jaxarm.learning.metaparams import NAMES, MetaParams
 from jaxarm.learning.registry import learning_meta
 from jaxarm.loop import LoopConfig
 from jaxarm.network import Network, NetworkConfig
-from jaxarm.task.config import TEST_KEY_FOLD, Target, TaskConfig
+from jaxarm.task.config import Target, TaskConfig
 from jaxarm.task.interface import TaskInterface
 from jaxarm.train import EpochSummary, TestResult, Trained, fresh_noise, make_train
 
 #: NetworkConfig fields the commands set from their options; recorded in a run's meta when not the default.
 NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "readout_clip")
-# TEST_KEY_FOLD (imported above): the fold of a network's key that seeds its reaching test; a task says its own
-# (TaskInterface.test_key_fold).
 
 
 @functools.lru_cache(maxsize=16)
@@ -242,6 +240,11 @@ class Runner:
     def meta(self) -> dict:
         learning = learning_meta(self.config.learning, self.config.rule_config)
         return self.description | self.network_meta() | learning
+
+    def config_record(self) -> dict:
+        """results.json's ``config``: the whole LoopConfig as JSON and the run's :meth:`meta` (what ``jaxarm
+        reproduce`` compares to reuse a finished folder)."""
+        return json.loads(json.dumps({"loop": dataclasses.asdict(self.config), **self.meta()}, default=_json_default))
 
     def network_meta(self) -> dict:
         """The run's NetworkConfig fields that differ from the defaults (only those are recorded, so folders
@@ -497,6 +500,13 @@ class SetsRun(Runner):
 
     def meta(self) -> dict:
         return {k: v for k, v in super().meta().items() if k != "label"}
+
+
+def _json_default(x):
+    """numpy scalars in a configuration, as Python numbers."""
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"{type(x).__name__} is not JSON serialisable")
 
 
 #: The runner's former name (callers written before it ran any task).

@@ -121,14 +121,6 @@ def train_and_test(config, task: CentreOut, seeds, mp, out=None, progress: bool 
                        b.test(b.naive(), "naive test"))
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    return x.item() if isinstance(x, np.generic) else x
-
-
 def _learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
     """:func:`jaxarm.run.learning_curve` of tests after every epoch (``--test-each-epoch``) on every target: each
     (network, target) test counted as reaching's one test per network, so ``success_count`` (per epoch) counts the
@@ -154,7 +146,7 @@ def write_outputs(run: Runner, trained_res, naive_res, history, wall_s, epochs_r
                "timing": {"train_wall_s_this_invocation": round(wall_s, 2), "epochs_run_this_invocation": epochs_run,
                           "compile_s": None if compile_s is None else round(compile_s, 2),
                           "device": jax.default_backend(), "layout": parallel.describe()},
-               "config": {"loop": _jsonable(dataclasses.asdict(run.config)), **run.meta()}}
+               "config": run.config_record()}
     if run.learning_curve:
         results["learning_curve"] = _learning_curve(run.learning_curve, naive_res.success, task.epoch_duration_s)
     if parallel.is_main_process():

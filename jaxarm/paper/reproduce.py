@@ -68,16 +68,12 @@ def _finished(run) -> dict | None:
     path = run.out / "results.json"
     if not path.is_file():
         return None
-    from dataclasses import asdict
-
-    from jaxarm.experiment import _jsonable
-
     try:
         res = runfolder.read_json(path)
     except runfolder.DamagedFile as e:     # written again from the batch's checkpoints, which were kept
         print(f"jaxarm reproduce: note: {e}; writing it again", file=sys.stderr)
         return None
-    want = json.loads(json.dumps({"loop": _jsonable(asdict(run.config)), **run.meta()}))
+    want = run.config_record()
     return res if _comparable(res.get("config")) == _comparable(want) else None
 
 
