@@ -11,7 +11,7 @@ k is direction group k of an 8-group target code.
     net = NetworkConfig(spec=with_target_code(NetworkSpec.dura_bernal_2015()))
 
 This module is the task as data, with the task interface (:mod:`jaxarm.task.interface`) that lets the runner
-(:class:`jaxarm.run.Batch`) train and test it as it does reaching: each network's targets are the schedule (arrays
+(:class:`jaxarm.run.Runner`) train and test it as it does reaching: each network's targets are the schedule (arrays
 (n_targets, 2)), epoch e trains toward row e % n_targets, the test runs on every row. :mod:`jaxarm.run_centre_out`
 runs it (``make_centre_out_train``, ``train_and_test``, ``run_with_control``) and writes its results.
 """

@@ -1,6 +1,6 @@
 """What a runner needs of a task: the interface :class:`jaxarm.task.config.TaskConfig` (reaching, one target) and
 :class:`jaxarm.task.centre_out.CentreOut` (several targets, cycled) both provide, so one runner
-(:class:`jaxarm.run.Batch`: devices, groups, padding, checkpoints, resume, progress) trains and tests either.
+(:class:`jaxarm.run.Runner`: devices, groups, padding, checkpoints, resume, progress) trains and tests either.
 
 * :meth:`~TaskInterface.task_config`: the per-run settings every epoch and test read (epochs, epoch and test lengths,
   the start posture every epoch and test begin from, the success radius of the test).
