@@ -183,9 +183,14 @@ def main(argv=None) -> int:
         cmds = list(preset_commands(args, out).values()) if condition == "rstdp-preset" else \
             [command(condition, args, out)]
         shown = [" ".join(c[2:]).replace("jaxarm.cli", "jaxarm") for c in cmds]
-        for cmd, line in zip(cmds, shown):
-            print("$", line, flush=True)
-            subprocess.run(cmd, check=True)
+        if all((out / target / "results.json").is_file() for target in TARGETS):
+            # finished earlier (jaxarm train writes results.json after its last epoch): run again, it would only
+            # re-test and record this invocation's training time, none
+            print(f"{condition}: finished earlier in {out}, reused", flush=True)
+        else:
+            for cmd, line in zip(cmds, shown):
+                print("$", line, flush=True)
+                subprocess.run(cmd, check=True)
         rows = {target: summarise(json.loads((out / target / "results.json").read_text()), out / target)
                 for target in TARGETS}
         table["conditions"][condition] = {"commands": shown, "targets": rows}
