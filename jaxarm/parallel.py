@@ -27,6 +27,7 @@ minutes of training; the operation is not yet found: docs/scaling.md, "Known lim
 """
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import socket
@@ -304,6 +305,8 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
     if distributed or _cluster_detected() or os.environ.get("JAX_COORDINATOR_ADDRESS"):
         jax.config.update("jax_cpu_collectives_implementation", "gloo")
         timeout = COORDINATOR_TIMEOUT_S if coordinator_timeout_s is None else coordinator_timeout_s
+        global _wait_s
+        _wait_s = timeout
         if distributed:
             _join(timeout, coordinator, num_processes, process_id)
         else:
@@ -393,6 +396,40 @@ def is_main_process() -> bool:
     return jax.process_index() == 0
 
 
+_agreements = itertools.count()
+#: Seconds :func:`agree` waits for the other processes (the ``--coordinator-timeout`` the processes joined with).
+_wait_s = COORDINATOR_TIMEOUT_S
+
+
+def agree(refusal: str | None) -> str | None:
+    """Share a step's outcome across processes: each process gives its refusal (one line) or None, and every process
+    gets the first refusal of any process (naming it when it is another's), or None.
+
+    Without it a refusal on one process (process 0's folder lock) ends that process, and the others wait in their
+    first collective until gloo's 30 s timeout ends them with a traceback. Through the coordinator's key-value store
+    each process publishes its outcome and reads every other's, then all meet at a barrier, so process 0 (which holds
+    the store) leaves only after every process has read it. Every process must call it the same number of times, in
+    the same order. One process: ``refusal`` itself."""
+    n = jax.process_count()
+    if n == 1:
+        return refusal
+    from jax._src import distributed
+
+    client, me = distributed.global_state.client, jax.process_index()
+    key, wait_ms = f"jaxarm/agree/{next(_agreements)}", int(_wait_s * 1000)
+    client.key_value_set(f"{key}/{me}", refusal or "")
+    try:
+        said = [client.blocking_key_value_get(f"{key}/{i}", wait_ms) for i in range(n)]
+        client.wait_at_barrier(f"{key}/read", wait_ms)
+    except Exception:  # noqa: BLE001 - a process that never got here (it died, or hangs before this step)
+        return refusal or (f"process {me} of {n} waited {_wait_s:g} s for the others to reach the same step; one of "
+                           "them has ended or hangs (see its own output)")
+    for i, text in enumerate(said):
+        if text:
+            return text if i == me else f"{text} [process {i} of {n}; process {me} stops with it]"
+    return None
+
+
 def barrier(name: str) -> None:
     """Wait for every process (no-op with one)."""
     if jax.process_count() > 1:
@@ -455,5 +492,5 @@ def describe() -> dict:
 
 
 __all__ = ["AXIS", "BATCHED", "REPLICATED", "start", "mesh", "padded_size",
-           "sharded_map", "is_main_process", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe",
+           "sharded_map", "is_main_process", "agree", "barrier", "shard", "put", "host", "abstract", "pad_rows", "describe",
            "usable_cores", "cgroup_cpu_limit", "parse_cpu_max", "COORDINATOR_TIMEOUT_S", "group_span", "padding_note"]

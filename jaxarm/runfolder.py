@@ -292,21 +292,38 @@ def lookup(data: dict, path: Path, *keys: str):
     return value
 
 
-class _Nothing:
+class _Claim:
+    """:func:`prepare` and, on process 0, the :class:`FolderLock`; a refusal on any process refuses on all of them
+    (:func:`jaxarm.parallel.agree`), so no process is left waiting for one that has ended."""
+
+    def __init__(self, folder: Path, command: str, option: str):
+        self.folder, self.command, self.option, self.lock = folder, command, option, None
+
     def __enter__(self):
-        return self
+        from jaxarm import parallel
+
+        refusal = None
+        try:
+            prepare(self.folder, self.option)
+            if parallel.is_main_process():      # only process 0 of several locks: they share the folder
+                self.lock = FolderLock(self.folder, self.command, self.option).acquire()
+        except FolderError as e:
+            refusal = str(e)
+        refusal = parallel.agree(refusal)
+        if refusal is not None:
+            self.__exit__()
+            raise FolderError(refusal)
+        return self.lock
 
     def __exit__(self, *exc):
-        return None
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
 
 
-def claim(folder: Path, command: str, option: str = "--out"):
-    """:func:`prepare` the folder and return a context manager holding its :class:`FolderLock` (only process 0 of
-    several locks: they share the folder)."""
-    from jaxarm import parallel
-
-    prepare(folder, option)
-    return FolderLock(folder, command, option) if parallel.is_main_process() else _Nothing()
+def claim(folder: Path, command: str, option: str = "--out") -> _Claim:
+    """A context manager that :func:`prepare`-s the folder and holds its :class:`FolderLock` (see :class:`_Claim`)."""
+    return _Claim(folder, command, option)
 
 
 __all__ = ["DamagedFile", "FolderError", "FolderLock", "LOCK_FILE", "check_space", "claim", "folder_argument",

@@ -380,6 +380,26 @@ def _coordinator_port_busy(ws):
                             f"127.0.0.1:{s.getsockname()[1]}", "--num-processes", "2", "--process-id", "0"])
 
 
+def _refused_on_process_0(ws):
+    """Two processes on a folder another command holds: process 0 (which alone locks) is refused, and process 1,
+    which would otherwise wait in its first collective until gloo's timeout and a traceback, stops with it."""
+    out = ws.copy_of_reference("busy-2")
+    before = snapshot(out)
+    port = free_port()
+    argv = ["train", *TINY, "--out", str(out), "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2",
+            "--devices", "1", "--process-id"]
+    with lock_held_by_another_process(out) as holder:
+        first = subprocess.Popen([sys.executable, "-m", "jaxarm.cli", *argv, "0"], stderr=subprocess.PIPE, text=True)
+        got = cli_process([*argv, "1"], timeout=60)
+        err0 = first.communicate(timeout=60)[1]
+        assert first.returncode == 2 and one_line(err0).startswith("jaxarm train: --out ") and \
+            f"PID {holder.pid} " in err0, err0
+        assert f"PID {holder.pid} " in got.err
+    assert snapshot(out) == before
+    resumes_to_reference(ws, out)
+    return got
+
+
 def _damaged(command: str, file: str, damage: str, *extra: str):
     """``jaxarm COMMAND`` on a copy of the reference run whose ``file`` is damaged (``damage``: garbage, {},
     random bytes, truncated, empty)."""
@@ -566,6 +586,8 @@ CASES = [
          lambda ws: cli(["export", "--trajectory", str(ws.fresh("missing.csv")), "--to", "offline"]), 2,
          r"--trajectory .*missing\.csv: .*No such file", group="robot"),
     Case("`test` writing into a folder in use", _test_into_busy, 2, BUSY, group="lock"),
+    Case("process 1 of 2 when process 0 is refused (its folder in use)", _refused_on_process_0, 2,
+         r"--out .*: in use by jaxarm train .* \[process 0 of 2; process 1 stops with it\]$", group="processes"),
 ]
 
 
