@@ -19,7 +19,8 @@ and velocity profiles, trained vs naive, in the paper's layout). With ``--record
 (every cell's spikes in the tests, and with ``--record-train-s`` in the last seconds of chosen epochs;
 :mod:`jaxarm.record`) and, for the musculoskeletal arm, ``muscles.npz``; ``jaxarm figures`` and ``jaxarm video``
 draw them. With ``--task centre-out-8``: ``results.json`` and ``trajectories.npz`` of the task's own
-(:func:`jaxarm.run_centre_out.write_outputs`: every network tested on every target) and ``checkpoints/``.
+(:func:`jaxarm.run_centre_out.write_outputs`: every network tested on every target) and ``checkpoints/``; with
+``--record-spikes`` its tests are recorded as one window per target (``test_right``, ``naive_test_right``, ...).
 """
 from __future__ import annotations
 
@@ -124,58 +125,12 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
     plot_reach(run.out / "reach.png", t, np.asarray(trained_res.hand_m), np.asarray(naive_res.hand_m), target,
                task.success_radius_m, f"{run.config.arm} arm, {task.target} target")
     if getattr(run, "record", None) is not None:
-        results["record"] = write_records(run, trained_res, naive_res)
+        from jaxarm.recordfile import write_run_records
+
+        results["record"] = write_run_records(run, run.test_recordings(trained_res)
+                                              | run.test_recordings(naive_res, "naive_test"))
         (run.out / "results.json").write_text(json.dumps(results, indent=1))
     return results
-
-
-def write_records(run, trained_res, naive_res) -> dict:
-    """``spikes.npz`` (the tests' and recorded epochs' spikes) and, for the musculoskeletal arm, ``muscles.npz``
-    (the tests' muscles) of a recording run (:mod:`jaxarm.recordfile`); returns what results.json says about them."""
-    from jaxarm import recordfile
-    from jaxarm.network.populations import Populations
-
-    net, task = run.config.network, run.config.task
-    steps = net.steps_per_interface
-    windows = {}
-    for name, res in (("test", trained_res), ("naive_test", naive_res)):
-        if res.record is not None:
-            windows[name] = {"recording": res.record, "start_step": 0, "stop_step": task.test_steps * steps}
-    for e, rec in sorted(run.epoch_records.items()):
-        n_rec = round(run.record.train_last_s / task.update_interval_s)
-        windows[f"epoch_{e}"] = {"recording": rec, "start_step": (task.epoch_steps - n_rec) * steps,
-                                 "stop_step": task.epoch_steps * steps}
-    pops = Populations(net)
-    group = np.full(net.n_all, -1, np.int8)
-    group[pops.slice(net.spec.readout)] = pops.em_groups()
-    group[pops.slice(net.spec.proprio)] = pops.p_groups()
-    networks = run.recorded_networks()
-    earlier = recordfile.earlier_windows(run.out / recordfile.SPIKES_FILE, windows, seeds=run.seeds,
-                                         networks=networks)
-    recordfile.save_spikes(run.out / recordfile.SPIKES_FILE, windows, seeds=run.seeds, networks=networks,
-                           dt_ms=net.dt_ms, interval_ms=net.interface_ms, populations=net.populations,
-                           pop_start=[pops.start[p] for p in net.populations],
-                           pop_stop=[pops.stop[p] for p in net.populations],
-                           group=group,
-                           capacity=run.record_capacity, config=run.record, arm=run.config.arm, earlier=earlier)
-    files = [recordfile.SPIKES_FILE]
-    if run.config.arm == "musculoskeletal":
-        from jaxarm.arm.musculoskeletal import GROUP_MUSCLES
-
-        arm = run.fns.loop.arm
-        groups = [next((g for g, names in enumerate(GROUP_MUSCLES) if m in names), -1) for m in arm.muscle_names]
-        if recordfile.save_muscles(run.out / recordfile.MUSCLES_FILE, {n: w["recording"] for n, w in windows.items()
-                                                                        if n in ("test", "naive_test")},
-                                   seeds=run.seeds, networks=networks, muscle_names=arm.muscle_names, groups=groups,
-                                   interval_ms=net.interface_ms):
-            files.append(recordfile.MUSCLES_FILE)
-    spikes = {name: [int(c) for c in np.asarray(w["recording"].spikes.count)[networks]]
-              for name, w in windows.items()}
-    spikes |= {name: [int(c) for c in w["counts"].sum(axis=1)] for name, w in earlier.items()}
-    capacity = run.record_capacity | {name: int(w["capacity"]) for name, w in earlier.items()}
-    return {"files": files, "windows": list(windows) + list(earlier), "networks": networks,
-            "capacity_spikes": capacity, "max_rate_hz": run.record.max_rate_hz,
-            "memory_bound": run.record_memory, "spikes": spikes}
 
 
 def add_record_arguments(ap, train: bool) -> None:
@@ -340,8 +295,8 @@ def train_main(argv: list[str] | None = None) -> int:
                     help="reaching (default): one --target per network, the paper's task; centre-out-8: the "
                          "original's eight centre-out targets from one network, --epochs per target, cycled epoch by "
                          "epoch, a target code added to the network unless --network has one, every network tested "
-                         "on every target (jaxarm.run_centre_out; checkpoints, resume and --coordinator as "
-                         "reaching; no --record-spikes yet)")
+                         "on every target (jaxarm.run_centre_out; checkpoints, resume, --coordinator and "
+                         "--record-spikes as reaching, the tests recorded as one window per target)")
     ap.add_argument("--test-each-epoch", action="store_true",
                     help="also test every network after every epoch: results.json's learning_curve (successes per "
                          "epoch, and per network the training seconds until its test first succeeded)")
@@ -354,8 +309,6 @@ def train_main(argv: list[str] | None = None) -> int:
         ap.error(str(e))
     _check(ap, args)
     try:
-        if args.task != TASK_DEFAULT and (args.record_spikes or args.record_train_s):
-            raise ConfigError(f"--task {args.task}: without --record-spikes (not yet)")
         parallel_cli.start_from_arguments(args)
         configs = _configs(args)
         overrides = _parse_overrides(args.overrides)
@@ -522,9 +475,9 @@ def test_main(argv: list[str] | None = None) -> int:
     if "task" in meta:   # a task of its own (jaxarm train --task centre-out-8): rebuilt from its identity
         from jaxarm.task.centre_out import CentreOut
 
-        if meta["task"].get("name") != "centre-out" or record is not None:
-            ap.error(f"--from {args.src}: a {meta['task'].get('name')} run re-tests without --record-spikes (not "
-                     "yet)")
+        if meta["task"].get("name") != "centre-out":
+            ap.error(f"--from {args.src}: a run of task {meta['task'].get('name')!r}, which this version cannot "
+                     "rebuild; test it with the version that trained it")
         task = CentreOut(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["task"].items()
                             if k != "name"}, test_duration_s=args.test_s or 1.0)
         tc = task.task_config()
@@ -545,7 +498,8 @@ def test_main(argv: list[str] | None = None) -> int:
 def _test_into(ap, args, meta, cfg, out, record, overrides, task=None) -> int:
     try:
         if task is not None:
-            run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]), task=task)
+            run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]), task=task,
+                      record=record)
         elif isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
             from jaxarm.run import stack_rows
 

@@ -155,3 +155,47 @@ class SpikeFile:
         if network not in nets:
             raise KeyError(f"{self.path}: network {network} was not recorded (recorded: {nets})")
         return nets.index(network)
+
+
+def write_run_records(run, tests: dict) -> dict:
+    """``spikes.npz`` (the tests' and recorded epochs' spikes) and, for the musculoskeletal arm, ``muscles.npz``
+    (the tests' muscles) of a recording run (a :class:`jaxarm.run.Runner`); ``tests``: {window: Recording of the
+    real networks} of its tests (:meth:`~jaxarm.run.Runner.test_recordings`: ``test`` and ``naive_test``, or one
+    window per target of a task of several). Returns what results.json says about the files."""
+    from jaxarm.network.populations import Populations
+
+    net, task = run.config.network, run.config.task
+    steps = net.steps_per_interface
+    windows = {name: {"recording": rec, "start_step": 0, "stop_step": task.test_steps * steps}
+               for name, rec in tests.items() if rec is not None}
+    for e, rec in sorted(run.epoch_records.items()):
+        n_rec = round(run.record.train_last_s / task.update_interval_s)
+        windows[f"epoch_{e}"] = {"recording": rec, "start_step": (task.epoch_steps - n_rec) * steps,
+                                 "stop_step": task.epoch_steps * steps}
+    pops = Populations(net)
+    group = np.full(net.n_all, -1, np.int8)
+    group[pops.slice(net.spec.readout)] = pops.em_groups()
+    group[pops.slice(net.spec.proprio)] = pops.p_groups()
+    networks = run.recorded_networks()
+    earlier = earlier_windows(run.out / SPIKES_FILE, windows, seeds=run.seeds, networks=networks)
+    save_spikes(run.out / SPIKES_FILE, windows, seeds=run.seeds, networks=networks, dt_ms=net.dt_ms,
+                interval_ms=net.interface_ms, populations=net.populations,
+                pop_start=[pops.start[p] for p in net.populations], pop_stop=[pops.stop[p] for p in net.populations],
+                group=group, capacity=run.record_capacity, config=run.record, arm=run.config.arm, earlier=earlier)
+    files = [SPIKES_FILE]
+    if run.config.arm == "musculoskeletal":
+        from jaxarm.arm.musculoskeletal import GROUP_MUSCLES
+
+        arm = run.fns.loop.arm
+        groups = [next((g for g, names in enumerate(GROUP_MUSCLES) if m in names), -1) for m in arm.muscle_names]
+        if save_muscles(run.out / MUSCLES_FILE, {n: w["recording"] for n, w in windows.items() if n in tests},
+                        seeds=run.seeds, networks=networks, muscle_names=arm.muscle_names, groups=groups,
+                        interval_ms=net.interface_ms):
+            files.append(MUSCLES_FILE)
+    spikes = {name: [int(c) for c in np.asarray(w["recording"].spikes.count)[networks]]
+              for name, w in windows.items()}
+    spikes |= {name: [int(c) for c in w["counts"].sum(axis=1)] for name, w in earlier.items()}
+    capacity = run.record_capacity | {name: int(w["capacity"]) for name, w in earlier.items()}
+    return {"files": files, "windows": list(windows) + list(earlier), "networks": networks,
+            "capacity_spikes": capacity, "max_rate_hz": run.record.max_rate_hz,
+            "memory_bound": run.record_memory, "spikes": spikes}

@@ -210,9 +210,6 @@ class Runner:
         #: test_each_epoch; kept in the checkpoints' meta, so a resumed run keeps the epochs tested before)
         self.learning_curve: dict[int, dict] = {}
         if record is not None:
-            if not isinstance(self.task, TaskConfig):
-                raise ConfigError("spike recording (--record-spikes) records one target's test: not yet for a task "
-                                  "of several targets")
             self._check_record()
         self.fns, self.init_fn, self.epoch_fn, self.test_fn, self.epoch_rec_fn = compiled(
             config, self.mesh, record, self.at_once, None if self.task == config.task else self.task)
@@ -227,10 +224,23 @@ class Runner:
             raise ConfigError(f"--record-networks {' '.join(map(str, bad))}: the run has {self.n} networks (0.."
                               f"{self.n - 1})")
         test = rec.capacity(net.n_all, task.test_steps * net.interface_ms)
-        self.record_capacity = {"test": test, "naive_test": test}
+        self.record_capacity = {name: test for what in ("test", "naive_test") for name in self.test_windows(what)}
         for e in rec.recorded_epochs(task.epochs):
             self.record_capacity[f"epoch_{e}"] = rec.capacity(net.n_all, rec.train_last_s * 1000.0)
         self.record_memory = rec_mod.check_memory(rec, self.n_padded, self.record_capacity)
+
+    def test_windows(self, what: str = "test") -> list[str]:
+        """The recorded windows of a test (``what``: test, naive_test): ``what`` itself for a task of one target,
+        ``what_TARGET`` for each target of a task that tests several (its test's leading target axis)."""
+        targets = getattr(self.task, "targets", None)
+        return [what] if isinstance(self.task, TaskConfig) or targets is None else [f"{what}_{t}" for t in targets]
+
+    def test_recordings(self, result: TestResult, what: str = "test") -> dict:
+        """{window: the host Recording of the real networks} of a test's result (:meth:`test_windows`)."""
+        names = self.test_windows(what)
+        if len(names) == 1 and names[0] == what:
+            return {what: result.record}
+        return {name: jax.tree.map(lambda x, k=k: np.asarray(x)[:, k], result.record) for k, name in enumerate(names)}
 
     def recorded_networks(self) -> list[int]:
         """Indices of the networks whose records are written."""
@@ -426,8 +436,9 @@ class Runner:
         if result.record is not None:
             from jaxarm import record as rec_mod
 
-            rec_mod.check_overflow(result.record.spikes, self.record_capacity["test"], self.seeds, what,
-                                   self.record.max_rate_hz)
+            for name, rec in self.test_recordings(result).items():
+                rec_mod.check_overflow(rec.spikes, self.record_capacity[name], self.seeds,
+                                       what + name.removeprefix("test").replace("_", " ", 1), self.record.max_rate_hz)
         return result
 
     def _host_recording(self, recording, what: str, capacity: int):

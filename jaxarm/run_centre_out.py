@@ -149,6 +149,11 @@ def write_outputs(run: Runner, trained_res, naive_res, history, wall_s, epochs_r
                "config": run.config_record()}
     if run.learning_curve:
         results["learning_curve"] = _learning_curve(run.learning_curve, naive_res.success, task.epoch_duration_s)
+    if run.record is not None:   # a window per target: test_right, ..., naive_test_right, ...
+        from jaxarm.recordfile import write_run_records
+
+        results["record"] = write_run_records(run, run.test_recordings(trained_res)
+                                              | run.test_recordings(naive_res, "naive_test"))
     if parallel.is_main_process():
         run.out.mkdir(parents=True, exist_ok=True)
         (run.out / "results.json").write_text(json.dumps(results, indent=1))

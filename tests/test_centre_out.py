@@ -101,8 +101,27 @@ def test_the_command_line_trains_and_tests_the_eight_targets(tmp_path):
     assert main(["test", "--from", str(out), "--test-s", "0.2"]) == 0
     again = json.loads((out / "test" / "results.json").read_text())
     assert again["trained"] == r["trained"] and again["naive"] == r["naive"]
-    with pytest.raises(SystemExit):
-        main(["train", "--task", "centre-out-8", "--record-spikes", "--out", str(tmp_path / "r")])
+    # recorded: one window per target and test; the recording changes no result, and window test_T holds the test
+    # on target T (its joint angles, through the planar kinematics by hand, give that target's hand path)
+    assert main(["test", "--from", str(out), "--test-s", "0.2", "--record-spikes", "--out", str(out / "rec")]) == 0
+    rec = json.loads((out / "rec" / "results.json").read_text())
+    assert rec["trained"] == r["trained"] and rec["naive"] == r["naive"]
+    assert rec["record"]["windows"] == [f"{w}_{t}" for w in ("test", "naive_test") for t in CENTRE_OUT_8]
+    spikes, traj = np.load(out / "rec" / "spikes.npz"), np.load(out / "rec" / "trajectories.npz")
+    for window, key in (("test", "hand"), ("naive_test", "naive_hand")):
+        for k, target in enumerate(CENTRE_OUT_8):
+            q = spikes[f"{window}_{target}.q_rad"]                  # (networks, samples, 2) after each 10 ms
+            hand = np.array([[forward_kinematics_m(x) for x in net] for net in q])
+            np.testing.assert_allclose(hand, traj[key][:, k, 1:], atol=1e-6)
+            assert spikes[f"{window}_{target}.counts"].sum() > 0
+    # `jaxarm figures` draws the raster and rates of a target's test (default: the first target's) and says why it
+    # skips the reaching figures
+    assert main(["figures", str(out / "rec"), "--out", str(tmp_path / "fig")]) == 0
+    manifest = json.loads((tmp_path / "fig" / "figures.json").read_text())
+    assert manifest["window"] == f"test_{CENTRE_OUT_8[0]}" and set(manifest["written"]) == {"raster", "rates"}
+    assert "centre-out" in manifest["skipped"]["reach_paths"]
+    drawn = np.load(tmp_path / "fig" / "raster.npz")
+    assert len(drawn["t_ms"]) == spikes[f"test_{CENTRE_OUT_8[0]}.counts"][0].sum()
 
 
 @pytest.mark.slow   # compiles a centre-out training and test for two batch sizes

@@ -75,12 +75,13 @@ class RunFolder:
     """The files of a `jaxarm train`/`test` folder that the figures read."""
 
     @classmethod
-    def from_arguments(cls, ap: argparse.ArgumentParser, args) -> "RunFolder":
+    def from_arguments(cls, ap: argparse.ArgumentParser, args, several_targets: bool = False) -> "RunFolder":
         """The folder of ``args.run``, with ``args.network`` checked against it; a bad value exits through
         ``ap.error`` with one line (the commands `jaxarm figures` and `jaxarm video`), a damaged file (not JSON,
-        not an .npz, truncated, lacking a field) with one line naming it, status 2."""
+        not an .npz, truncated, lacking a field) with one line naming it, status 2. ``several_targets``: a run of a
+        task of several targets (centre-out) is read too (its spikes; the reaching figures are skipped)."""
         try:
-            run = cls(args.run)
+            run = cls(args.run, several_targets)
         except FileNotFoundError as e:
             ap.error(str(e))
         except DamagedFile as e:
@@ -89,26 +90,33 @@ class RunFolder:
             ap.error(f"--network {args.network}: the run has {run.n} networks (0..{run.n - 1})")
         return run
 
-    def __init__(self, path):
+    def __init__(self, path, several_targets: bool = False):
         self.path = Path(path)
         if not (self.path / "results.json").is_file() or not (self.path / "trajectories.npz").is_file():
             raise FileNotFoundError(f"{self.path}: no results.json and trajectories.npz there; give a folder written "
                                     "by `jaxarm train` or `jaxarm test`")
         results = self.path / "results.json"
         self.results = read_json(results)
+        #: the targets of a task of several (centre-out: every network tested on each), None for reaching
+        self.targets = None
         if self.results.get("task") == "centre-out-8":
-            raise DamagedFile(f"{results}: a centre-out-8 run; the figures and the video draw a reaching run "
-                              "(one target per network)")
-        self.traj = read_npz(self.path / "trajectories.npz", TRAJECTORY_KEYS)
+            if not several_targets:
+                raise DamagedFile(f"{results}: a centre-out-8 run; the video draws a reaching run (one target per "
+                                  "network)")
+            self.targets = [str(t) for t in lookup(self.results, results, "targets")]
         self.history = None
         if (self.path / "history.npz").is_file():
             self.history = read_npz(self.path / "history.npz", ("rates_last10s_hz", "populations"))
         self.spikes = SpikeFile(self.path / SPIKES_FILE) if (self.path / SPIKES_FILE).is_file() else None
         self.muscles = None
+        self.arm = lookup(self.results, results, "config", "arm")
+        if self.targets is not None:   # its trajectories have a target axis; only the spike figures read it
+            self.seeds = read_npz(self.path / "trajectories.npz", ("seeds",))["seeds"]
+            return
+        self.traj = read_npz(self.path / "trajectories.npz", TRAJECTORY_KEYS)
         if (self.path / MUSCLES_FILE).is_file():
             self.muscles = read_npz(self.path / MUSCLES_FILE, ("networks", "muscle_names"))
         task = lookup(self.results, results, "config", "loop", "task")
-        self.arm = lookup(self.results, results, "config", "arm")
         lookup(self.results, results, "target")
         try:
             self.dt_s = float(lookup(task, results, "update_interval_s"))
@@ -131,7 +139,14 @@ class RunFolder:
 
     @property
     def label(self) -> str:
+        if self.targets is not None:
+            return f"{self.arm} arm, {len(self.targets)} centre-out targets"
         return f"{self.arm} arm, {self.results['target']} target"
+
+    @property
+    def default_window(self) -> str:
+        """The window the raster and rates draw unless told: the test (of the first target, for several)."""
+        return "test" if self.targets is None else f"test_{self.targets[0]}"
 
 
 def _save(fig, path: Path, dpi: int) -> Path:
@@ -435,12 +450,25 @@ def robot_figures(log_path: Path, out: Path) -> list[Path]:
 
 # -- the command --------------------------------------------------------------------------------------------------
 
-def make_figures(run: RunFolder, out: Path, network: int = 0, window: str = "test", bin_ms: float = 10.0,
+def _reaching_figures(run: RunFolder, out: Path, network: int, grid: bool, dpi: int) -> dict:
+    """The figures of a reaching run's test: hand paths, jerk, muscles (when recorded)."""
+    written = {}
+    written["reach_paths"] = reach_paths_figure(run, out, dpi)
+    if grid:
+        written["reach_paths_grid"] = reach_paths_grid_figure(run, out, dpi)
+    written["jerk_box"] = jerk_box_figure(run, out, dpi)
+    if run.muscles is not None:
+        written["muscles"] = muscles_figure(run, out, network, dpi)
+    return written
+
+
+def make_figures(run: RunFolder, out: Path, network: int = 0, window: str | None = None, bin_ms: float = 10.0,
                  robot_log: Path | None = None, grid: bool = False, dpi: int = 120) -> dict:
     """Write every figure the folder's files allow into ``out``; returns {"written": {figure: [files]},
     "skipped": {figure: why}} (also written to ``out/figures.json``)."""
     out.mkdir(parents=True, exist_ok=True)
     written, skipped = {}, {}
+    window = window or run.default_window
     no_spikes = (f"no {SPIKES_FILE} in {run.path}: make it with `jaxarm test --from {run.path} --record-spikes` "
                  "(or train with --record-spikes)")
     if run.spikes is not None:
@@ -451,15 +479,15 @@ def make_figures(run: RunFolder, out: Path, network: int = 0, window: str = "tes
             written["raster_grid"] = raster_grid_figure(run, out, window, dpi)
     else:
         skipped["raster"] = skipped["rates"] = no_spikes
-    written["reach_paths"] = reach_paths_figure(run, out, dpi)
-    if grid:
-        written["reach_paths_grid"] = reach_paths_grid_figure(run, out, dpi)
-    written["jerk_box"] = jerk_box_figure(run, out, dpi)
-    if run.muscles is not None:
-        written["muscles"] = muscles_figure(run, out, network, dpi)
+    if run.targets is not None:
+        why = (f"a run of {len(run.targets)} centre-out targets: this figure draws a reaching run (one target per "
+               "network); the hand paths per target are in trajectories.npz")
+        skipped |= {name: why for name in ("reach_paths", "jerk_box", "muscles")}
     else:
-        skipped["muscles"] = (f"the {run.arm} arm has no muscles" if run.arm != "musculoskeletal" else
-                              f"no {MUSCLES_FILE} in {run.path}: record with --record-spikes")
+        written |= _reaching_figures(run, out, network, grid, dpi)
+        if run.muscles is None:
+            skipped["muscles"] = (f"the {run.arm} arm has no muscles" if run.arm != "musculoskeletal" else
+                                  f"no {MUSCLES_FILE} in {run.path}: record with --record-spikes")
     if robot_log is not None:
         files = robot_figures(robot_log, out)
         written["robot_hand_xy"], written["robot_jerk"] = files[:2], files[2:]
@@ -478,15 +506,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="output folder (default RUN/figures)")
     ap.add_argument("--network", type=int, default=0,
                     help="the network (0-based index in the run) of the raster, rates and muscle figures")
-    ap.add_argument("--window", default="test",
-                    help="recorded window of the raster and rates: test, naive_test or epoch_E (default test)")
+    ap.add_argument("--window", default=None,
+                    help="recorded window of the raster and rates: test, naive_test or epoch_E (default test); for "
+                         "a centre-out run test_T or naive_test_T of a target T (default the first target's test)")
     ap.add_argument("--bin-ms", type=float, default=10.0, help="bin of the population rates, ms (default 10)")
     ap.add_argument("--robot-log", type=Path, default=None,
                     help="a `jaxarm wam-sim` CSV log: also draw the robot following the virtual arm (hand X/Y, jerk)")
     ap.add_argument("--grid", action="store_true", help="also draw one panel per network (raster and hand paths)")
     ap.add_argument("--dpi", type=int, default=120, help="resolution of the PNGs (default 120)")
     args = ap.parse_args(argv)
-    run = RunFolder.from_arguments(ap, args)
+    run = RunFolder.from_arguments(ap, args, several_targets=True)
     if not 0 < args.bin_ms <= 10_000:
         ap.error(f"--bin-ms {args.bin_ms:g}: must be in (0, 10000] ms")
     if not 10 <= args.dpi <= 1200:
