@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
 import json
 from pathlib import Path
 
@@ -43,7 +44,7 @@ from jaxarm.loop import LoopConfig
 from jaxarm.network import NetworkConfig
 from jaxarm.run import Run, SetsRun, add_network_arguments, learning_curve, network_config
 from jaxarm.task.config import TARGET_ANGLES_RAD, TEST_EM_NOISE_EVENTS, TaskConfig
-from jaxarm.task.registry import DEFAULT as TASK_DEFAULT, TASKS
+from jaxarm.task.registry import DEFAULT as TASK_DEFAULT, TASKS, by_identity
 from jaxarm.train import fresh_noise
 
 
@@ -222,27 +223,20 @@ def _add_test_noise_option(ap, default="unlimited"):
 
 
 def _configs(args) -> list[tuple[str, LoopConfig, object]]:
-    """(name, LoopConfig, task) of every run the options ask for: one per --target (the task None: the config's
-    own, reaching), or with --task centre-out-8 the one run of a CentreOut task (its target code added to the
-    network unless it has one)."""
-    if getattr(args, "task", TASK_DEFAULT) == "centre-out-8":
-        from jaxarm.task.centre_out import CentreOut, ensure_target_code
-
-        task = CentreOut(epochs_per_target=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s)
-        net = network_config(args)
-        net = dataclasses.replace(net, spec=ensure_target_code(net.spec, task))
-        learning = getattr(args, "learning", DEFAULT)
-        return [("centre-out-8", LoopConfig(arm=args.arm, backend=args.backend, network=net,
-                                            task=task.task_config(), learning=learning,
-                                            rule=RULES[learning].config_from_arguments(args)), task)]
+    """(name, LoopConfig, task) of every run the options ask for: the registered task's runs
+    (:data:`jaxarm.task.registry.TASKS`; reaching: one per --target, centre-out-8: one), each network spec with what
+    its task adds (centre-out: a target code, unless the network has one)."""
+    learning = getattr(args, "learning", DEFAULT)
     out = []
-    for target in args.target:
-        task = TaskConfig(target=target, epochs=args.epochs, epoch_duration_s=args.epoch_s,
-                          test_duration_s=args.test_s, test_em_noise_events=args.test_em_noise_events)
-        learning = getattr(args, "learning", DEFAULT)
-        cfg = LoopConfig(arm=args.arm, backend=args.backend, network=network_config(args), task=task,
-                         learning=learning, rule=RULES[learning].config_from_arguments(args))
-        out.append((target, cfg, None))
+    for name, task in TASKS[getattr(args, "task", TASK_DEFAULT)].Config.from_options(
+            targets=args.target, epochs=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s,
+            test_em_noise_events=args.test_em_noise_events):
+        net = network_config(args)
+        spec = task.prepare_spec(net.spec)
+        if spec is not net.spec:
+            net = dataclasses.replace(net, spec=spec)
+        out.append((name, LoopConfig(arm=args.arm, backend=args.backend, network=net, task=task.task_config(),
+                                     learning=learning, rule=RULES[learning].config_from_arguments(args)), task))
     return out
 
 
@@ -322,35 +316,25 @@ def train_main(argv: list[str] | None = None) -> int:
         return _train_targets(ap, args, configs, mp, record)
 
 
-def _reaching_said(args, run, res) -> str:
+def said(run, res) -> str:
+    """The line ``jaxarm train`` prints for a reaching run's results."""
     return (f"{run.config.arm} arm, {run.config.task.target} target: {res['success_count']}/{run.n} trained networks "
             f"reached the {run.config.task.success_radius_m * 100:.0f} cm circle (naive: "
             f"{res['naive']['success_count']}/{run.n}); median min distance "
             f"{np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm -> {run.out / 'results.json'}")
 
 
-def _centre_out_said(args, run, res) -> str:
-    return (f"{run.config.arm} arm, {len(res['targets'])} centre-out targets, {run.n} networks: "
-            + ", ".join(f"{t} {n}/{run.n}" for t, n in res["trained"]["per_target"].items())
-            + f" (naive: {sum(res['naive']['per_target'].values())} reaches in all); networks by targets reached "
-            f"(0..{len(res['targets'])}): {res['trained']['targets_reached_per_network']} -> "
-            f"{run.out / 'results.json'}")
-
-
 def _task_outputs(name: str):
-    """(write the results, the line that says them) of the task registered as ``name``: reaching's
-    :func:`write_outputs`, centre-out's :func:`jaxarm.run_centre_out.write_outputs`."""
-    if name == "centre-out-8":
-        from jaxarm import run_centre_out
-
-        return run_centre_out.write_outputs, _centre_out_said
-    return write_outputs, _reaching_said
+    """(write the results, the line that says them) of the task registered as ``name``: its outputs module's
+    ``write_outputs`` and ``said`` (reaching's: this module's)."""
+    module = importlib.import_module(TASKS[name].outputs)
+    return module.write_outputs, module.said
 
 
 def _train_targets(ap, args, configs, mp, record) -> int:
     """Every run of ``configs`` ((name, LoopConfig, task): one per reaching target, or the one centre-out run)
     through the one runner (:class:`jaxarm.run.Run`: checkpoints, resume, every device of every process)."""
-    write, said = _task_outputs(args.task)
+    write, say = _task_outputs(args.task)
     summary = {}
     for name, cfg, task in configs:
         out = args.out / name if len(configs) > 1 else args.out
@@ -369,7 +353,7 @@ def _train_targets(ap, args, configs, mp, record) -> int:
         if "success_count" in res:
             summary[name] = res["success_count"]
         if parallel.is_main_process():
-            print(said(args, run, res), flush=True)
+            print(say(run, res), flush=True)
     if len(configs) > 1 and parallel.is_main_process():
         (args.out / "summary.json").write_text(json.dumps({"success_count": summary, "networks": args.networks}))
     return 0
@@ -471,15 +455,14 @@ def test_main(argv: list[str] | None = None) -> int:
     if meta["epochs"] != ckpt.latest_step():
         raise SystemExit(f"{args.src} finished {ckpt.latest_step()} of {meta['epochs']} epochs: rerun `jaxarm train` "
                          "with the same options to finish it first")
-    task = None
+    task, task_name = None, TASK_DEFAULT
     if "task" in meta:   # a task of its own (jaxarm train --task centre-out-8): rebuilt from its identity
-        from jaxarm.task.centre_out import CentreOut
-
-        if meta["task"].get("name") != "centre-out":
-            ap.error(f"--from {args.src}: a run of task {meta['task'].get('name')!r}, which this version cannot "
-                     "rebuild; test it with the version that trained it")
-        task = CentreOut(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["task"].items()
-                            if k != "name"}, test_duration_s=args.test_s or 1.0)
+        found = by_identity(meta["task"].get("name"))
+        if found is None:
+            ap.error(f"--from {args.src}: a run of task {meta['task'].get('name')!r}, which this version does not "
+                     f"register (tasks: {', '.join(TASKS)}); test it with the version that trained it")
+        task_name, entry = found
+        task = entry.Config.from_identity(meta["task"], test_duration_s=args.test_s or 1.0)
         tc = task.task_config()
     else:
         tc = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
@@ -492,10 +475,10 @@ def test_main(argv: list[str] | None = None) -> int:
                      rule=rule)
     out = args.out or args.src / "test"
     with runfolder.claim(out, "jaxarm test"):   # one writer per folder, as for jaxarm train
-        return _test_into(ap, args, meta, cfg, out, record, overrides, task)
+        return _test_into(ap, args, meta, cfg, out, record, overrides, task, task_name)
 
 
-def _test_into(ap, args, meta, cfg, out, record, overrides, task=None) -> int:
+def _test_into(ap, args, meta, cfg, out, record, overrides, task=None, task_name=TASK_DEFAULT) -> int:
     try:
         if task is not None:
             run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]), task=task,
@@ -516,9 +499,9 @@ def _test_into(ap, args, meta, cfg, out, record, overrides, task=None) -> int:
     trained, naive = carry.trained, run.naive()
     if args.fresh_noise is not None:
         trained, naive = (fresh_noise(t, args.fresh_noise) for t in (trained, naive))
-    write, said = _task_outputs("reaching" if task is None else "centre-out-8")
+    write, say = _task_outputs(task_name)
     res = write(run, run.test(trained), run.test(naive, "naive test"), history, 0.0, 0)
     if parallel.is_main_process():
-        print(said(args, run, res) if task is not None else
+        print(say(run, res) if task is not None else
               f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
     return 0

@@ -162,6 +162,15 @@ def write_outputs(run: Runner, trained_res, naive_res, history, wall_s, epochs_r
     return results
 
 
+def said(run: Runner, res: dict) -> str:
+    """The line ``jaxarm train`` and ``jaxarm test`` print for a centre-out run's results (:func:`write_outputs`)."""
+    return (f"{run.config.arm} arm, {len(res['targets'])} centre-out targets, {run.n} networks: "
+            + ", ".join(f"{t} {n}/{run.n}" for t, n in res["trained"]["per_target"].items())
+            + f" (naive: {sum(res['naive']['per_target'].values())} reaches in all); networks by targets reached "
+            f"(0..{len(res['targets'])}): {res['trained']['targets_reached_per_network']} -> "
+            f"{run.out / 'results.json'}")
+
+
 #: The two conditions of the centre-out comparison: the network with a target code, and without (the control)
 CONDITIONS = ("target-code", "control")
 

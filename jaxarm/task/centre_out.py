@@ -88,6 +88,25 @@ class CentreOut:
         return {"name": "centre-out"} | {k: list(v) if isinstance(v, tuple) else v
                                          for k, v in dataclasses.asdict(self).items() if k != "test_duration_s"}
 
+    # -- built from a command's options, or again from a run's description ------------------------------------------
+    @classmethod
+    def from_options(cls, *, targets, epochs: int, epoch_duration_s: float, test_duration_s: float,
+                     test_em_noise_events: str) -> list[tuple[str, "CentreOut"]]:
+        """``jaxarm train --task centre-out-8``'s one run: the eight targets, ``epochs`` per target (``targets``,
+        reaching's option, and the test noise option do not apply)."""
+        return [("centre-out-8", cls(epochs_per_target=epochs, epoch_duration_s=epoch_duration_s,
+                                     test_duration_s=test_duration_s))]
+
+    @classmethod
+    def from_identity(cls, identity: dict, test_duration_s: float) -> "CentreOut":
+        """The task a run recorded (:meth:`identity`), tested for ``test_duration_s``."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in identity.items() if k != "name"},
+                   test_duration_s=test_duration_s)
+
+    def prepare_spec(self, spec: NetworkSpec) -> NetworkSpec:
+        """The network spec with this task's target code (added unless the spec has one)."""
+        return ensure_target_code(spec, self)
+
     def directions_deg(self) -> tuple[float, ...]:
         """Direction of each target from the start hand position, degrees counterclockwise from +x."""
         x0, y0 = self.task_config().start_xy_m

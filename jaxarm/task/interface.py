@@ -14,6 +14,10 @@
 * :attr:`~TaskInterface.test_key_fold`: what a network's key is folded with for its test (None: the key itself).
 * :meth:`~TaskInterface.identity`: the JSON description of the task that a checkpoint must match to be resumed.
 
+For the command line (:data:`jaxarm.task.registry.TASKS`), a registered task's class also has ``from_options``
+(its runs from ``jaxarm train``'s options), ``prepare_spec(spec)`` (what it adds to the network: centre-out's target
+code) and, for a task that records its own identity, ``from_identity`` (``jaxarm test --from``).
+
 Reaching's ``epoch`` and ``test`` return the functions they are given, so its compiled programs are those of a run
 that knows no task interface.
 """
