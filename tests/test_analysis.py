@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxarm.analysis import (dimensionless_jerk, jerk, jerk_magnitude, mean_sd, path_length, reach_metrics,
-                             summarize_reaches, velocity)
+from jaxarm.analysis import (dimensionless_jerk, jerk, jerk_energy, jerk_magnitude, mean_sd, path_length,
+                             reach_metrics, summarize_reaches, velocity)
 
 
 def straight_reach(profile, n, duration=1.0, amplitude=0.15, angle=0.7, origin=(0.1, 0.3)):
@@ -35,6 +35,20 @@ def test_cubic_reach_scores_exactly_144(duration, amplitude, angle, n):
         # x = Aτ³ (starts at rest, free end): jerk 6A/D³, ∫jerk² = 36 A²/D⁵, v_mean = A/D -> exactly 36
         xy, dt = straight_reach(lambda u: u ** 3, n, duration, amplitude, angle)
         assert float(dimensionless_jerk(xy, dt)) == pytest.approx(36.0, rel=1e-9)
+
+
+def test_jerk_energy_of_the_cubic_reach_and_its_parts():
+    # x = A(3τ² - 2τ³): jerk² = 144 A²/D⁶ at every sample, so ∫jerk² dt = 144 A²/D⁵ exactly, and a part of the
+    # samples gets its trapezoid weights: the first k samples get (k - 0.5) dt of the D = (n - 1) dt
+    duration, amplitude, n = 0.8, 0.12, 41
+    xy, dt = straight_reach(CUBIC, n, duration, amplitude)
+    whole = 144 * amplitude ** 2 / duration ** 5
+    assert float(jerk_energy(xy, dt)) == pytest.approx(whole, rel=1e-9)
+    first = np.arange(n) < 10
+    assert float(jerk_energy(xy, dt, first)) == pytest.approx(whole * (10 - 0.5) / (n - 1), rel=1e-9)
+    assert float(jerk_energy(xy, dt, first) + jerk_energy(xy, dt, ~first)) == pytest.approx(whole, rel=1e-9)
+    # the dimensionless jerk is the energy times D^5 / L^2 (L = A for a straight reach)
+    assert float(dimensionless_jerk(xy, dt)) == pytest.approx(whole * duration ** 5 / amplitude ** 2, rel=1e-9)
 
 
 def test_stencils_are_exact_for_quartics():
@@ -576,3 +590,36 @@ def test_beside_paper_gives_each_measure_with_the_papers_value_and_ratio(tmp_pat
     _fake_run(tmp_path / "simple", "simple", "left", [stays], [never], [True])
     simple = mod.beside_paper(mod.target_stats(tmp_path / "simple"))
     assert simple["distance_after_m"]["paper"] is None and simple["distance_after_m"]["ratio"] is None
+
+
+def test_jerk_phases_takes_the_ratio_apart_on_reaches_with_known_answers():
+    # experiments/jerk_phases.py on cubic reaches (constant jerk 12A/D^3): a trained reach of 15 cm and a naive one
+    # of 3 cm have the same dimensionless jerk (144), so the ratio is 1 = energy ratio 25 x length factor 1/25, and
+    # every window holds the energy share of its samples' trapezoid weights; the hand enters a 4 cm circle around
+    # the end at the sample where the remaining distance drops below it
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "jerk_phases.py"
+    spec = importlib.util.spec_from_file_location("jerk_phases", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    n, dt = 101, 0.01
+    trained, _ = straight_reach(CUBIC, n, 1.0, 0.15)
+    naive, _ = straight_reach(CUBIC, n, 1.0, 0.03)
+    t = np.arange(n) * dt
+    distance = np.linalg.norm(trained - trained[-1], axis=-1)
+    r = mod.phases({"hand": trained[None], "naive_hand": naive[None], "t": t, "distance": distance[None]}, dt)
+    assert r["jerk_ratio_of_means"] == pytest.approx(1.0, rel=1e-9)
+    assert r["median_energy_ratio"] == pytest.approx(25.0, rel=1e-9)
+    assert r["median_length_factor"] == pytest.approx(1 / 25, rel=1e-9)
+    weights = np.full(n, dt)
+    weights[[0, -1]] /= 2
+    for (a, b) in mod.WINDOWS_S:
+        share = weights[(t >= a - 1e-9) & (t < b - 1e-9 if b < 1.0 else t <= 1.0)].sum() / weights.sum()
+        got = r["energy_share_by_window"][mod.window_name(a, b)]
+        assert got["trained"] == pytest.approx(share, rel=1e-9) and got["naive"] == pytest.approx(share, rel=1e-9)
+    first = int(np.argmax(distance < 0.04))
+    assert r["entered"] == 1
+    assert r["energy_share_before_first_entry"]["median"] == pytest.approx(weights[:first].sum() / weights.sum(),
+                                                                           rel=1e-9)

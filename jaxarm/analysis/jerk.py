@@ -110,6 +110,21 @@ def path_length(xy) -> np.ndarray:
     return np.linalg.norm(np.diff(_float64(xy), axis=-2), axis=-1).sum(axis=-1)
 
 
+def jerk_energy(xy, dt, where=None) -> np.ndarray:
+    """∫|x'''(t)|² dt in m²/s⁵ by the trapezoid rule over all T samples (the integral of :func:`dimensionless_jerk`),
+    counting only the samples where ``where`` ((..., T) bool) is True: the whole path's trapezoid weights, so the
+    parts over a partition of the samples add up to the whole. ``dimensionless_jerk(xy, dt) = jerk_energy(xy, dt) ·
+    D⁵ / L²`` (D the duration, L the path length), so the trained/naive ratio of two paths of one duration is their
+    energy ratio times (L_naive / L_trained)².
+    """
+    j2 = np.sum(jerk(xy, dt) ** 2, axis=-1)
+    weight = np.full(j2.shape[-1], float(dt))
+    weight[[0, -1]] *= 0.5
+    if where is not None:
+        j2 = np.where(where, j2, 0.0)
+    return j2 @ weight
+
+
 def dimensionless_jerk(xy, dt, normalise: str = "mean") -> np.ndarray:
     """Dimensionless jerk (∫|x'''|² dt) · D³ / v² of a hand path (see the module docstring for the exact scheme).
 
