@@ -1,4 +1,5 @@
-"""The closed loop of spec §3: network ↔ arm every 10 ms, with the learning rule in training.
+"""The closed loop of [model: closed loop](../model.md#the-closed-loop): network ↔ arm every 10 ms, with the learning
+rule in training.
 
 One interface period (``interval``) at time t (ms since the start of the run), in the original's order:
 

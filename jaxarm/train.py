@@ -9,11 +9,11 @@ over metaparameter sets alike. ``train`` is ``lax.scan`` over epochs of :func:`T
 the same ``epoch`` function one epoch per call so a killed run resumes from its last completed epoch with identical
 results.
 
-Protocol (spec §6): each epoch is a fresh run of the network (cells, tags and noise streams reset; weights kept) and
-of the arm (start posture); the learning rule's state carries over (R-STDP's babbling draws continue). The test is
-1 s without learning, with every EM group receiving ``em_noise_rate_test_hz`` of AMPA noise. The rule is
-``config.learning`` (:mod:`jaxarm.learning.rule`): ``make_train`` calls its ``init``, ``begin_epoch`` and
-``end_epoch``, the loop its ``update`` after every training interval. The types it returns are
+Protocol ([model: task](../model.md#task-and-success)): each epoch is a fresh run of the network (cells, tags and noise
+streams reset; weights kept) and of the arm (start posture); the learning rule's state carries over (R-STDP's babbling
+draws continue). The test is 1 s without learning, with every EM group receiving ``em_noise_rate_test_hz`` of AMPA
+noise. The rule is ``config.learning`` (:mod:`jaxarm.learning.rule`): ``make_train`` calls its ``init``, ``begin_epoch``
+and ``end_epoch``, the loop its ``update`` after every training interval. The types it returns are
 :mod:`jaxarm.learning.training`'s (re-exported here).
 """
 from __future__ import annotations

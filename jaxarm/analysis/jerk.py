@@ -20,8 +20,8 @@ x = A(3τ² - 2τ³) (zero velocity but non-zero acceleration at both ends) scor
 minimum-jerk reach x = A(10τ³ - 15τ⁴ + 6τ⁵) scores 720 (to O(dt²)); uniform circular motion through an angle θ
 scores θ⁴; a constant-velocity path scores 0.
 
-The paper's absolute values (0.76, 1.72, 28.1; ``reference_values.md``) cannot come from this formula for reaches
-like its own. A movement that starts at rest (zero velocity and acceleration) satisfies
+The paper's absolute values (0.76, 1.72, 28.1; Dura-Bernal et al. 2015, §3.2 and Fig. 7) cannot come from this formula
+for reaches like its own. A movement that starts at rest (zero velocity and acceleration) satisfies
 |x(D) - x(0)| <= sqrt(∫|jerk|² dt) · sqrt(D⁵/20) (Cauchy-Schwarz), hence DLJ >= 20 · (displacement / path length)²
 whatever happens at the end, and a straight reach with zero velocity and acceleration at both ends scores >= 720.
 Compare the ordering and the ratios between conditions, not the absolute numbers. ``normalise="peak"`` gives

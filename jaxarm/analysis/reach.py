@@ -1,4 +1,4 @@
-"""Reach metrics of one test trial, as the paper reports them (§3.2; ``reference_values.md``). SI units: m, s.
+"""Reach metrics of one test trial, as the paper reports them (Dura-Bernal et al. 2015, §3.2). SI units: m, s.
 
 Conventions (the paper does not define them; these are ours and are applied identically to every trajectory):
 

@@ -37,7 +37,8 @@ class ArmObs(NamedTuple):
 
 
 def hand_position(q, segments_m=ARM_SEGMENTS_M):
-    """Authors' planar forward kinematics (spec §3): elbow = L1 (cos q1, sin q1); hand = elbow + L2 (cos(q1+q2), sin(q1+q2)).
+    """Authors' planar forward kinematics ([model: closed loop](../model.md#the-closed-loop)): elbow = L1 (cos q1, sin
+    q1); hand = elbow + L2 (cos(q1+q2), sin(q1+q2)).
 
     q: (..., 2) rad. Returns (..., 2) m.
     """

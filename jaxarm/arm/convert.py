@@ -41,7 +41,8 @@ from jaxarm.config.arm import ELBOW_RANGE_DEG, SHOULDER_RANGE_DEG
 ASSETS_DIR = Path(__file__).parent / "assets"
 #: MJCF joint names for the osim coordinates, in qpos order.
 JOINT_OF_COORDINATE = {"arm_flex": "shoulder", "elbow_flex": "elbow"}
-#: The joint ranges over which the translation is judged, rad (the authors' task limits, spec §6 / §8).
+#: The joint ranges over which the translation is judged, rad (the authors' task limits, [model:
+#: task](../model.md#task-and-success), [the musculoskeletal arm](../model.md#the-musculoskeletal-arm)).
 JOINT_RANGES_RAD = {
     "arm_flex": tuple(math.radians(v) for v in SHOULDER_RANGE_DEG),
     "elbow_flex": tuple(math.radians(v) for v in ELBOW_RANGE_DEG),

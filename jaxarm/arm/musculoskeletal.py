@@ -2,7 +2,8 @@
 
 One step advances ``config.dt_s`` (1 ms by default) of simulated time (SI units throughout):
 
-1. the 4 group excitations are spread over the driven muscles (spec §8; passive muscles get none);
+1. the 4 group excitations are spread over the driven muscles ([model: the musculoskeletal
+   arm](../model.md#the-musculoskeletal-arm); passive muscles get none);
 2. each muscle's activation and fibre length advance along the muscle-tendon length extrapolated from the current
    length and its rate (moment arms times joint velocities) (:mod:`jaxarm.arm.muscle`): the fibre ODE is stiff and
    kinked where a tendon goes slack, and one 1 ms linearly-implicit step of it chatters. By default
@@ -38,14 +39,16 @@ from jaxarm.arm.base import ArmObs, MuscleObs, hand_position
 from jaxarm.arm.geometry import FastGeometry, MjxGeometry, c_geometry, load_mjmodel
 from jaxarm.config.arm import SMOOTH_KINKS, MusculoskeletalArmConfig
 
-#: Muscles driven by each excitation group (spec §8, MuscleExcitationSetter). Others are passive.
+#: Muscles driven by each excitation group ([model: the musculoskeletal arm](../model.md#the-musculoskeletal-arm),
+#: MuscleExcitationSetter). Others are passive.
 GROUP_MUSCLES = (
     ("DELT3", "Infraspinatus", "Latissimus_dorsi_1", "Latissimus_dorsi_2", "Latissimus_dorsi_3", "Teres_minor"),
     ("PECM1", "PECM2", "PECM3", "DELT1", "Coracobrachialis"),
     ("TRIlong", "TRIlat", "TRImed"),
     ("BIClong", "BICshort", "BRA"),
 )
-#: Muscles whose fibre lengths feed the proprioceptive population, in group order (spec §8, muscleLengthBranch).
+#: Muscles whose fibre lengths feed the proprioceptive population, in group order ([model: the musculoskeletal
+#: arm](../model.md#the-musculoskeletal-arm), muscleLengthBranch).
 PROPRIO_MUSCLES = ("DELT3", "PECM1", "TRIlong", "BIClong")
 
 

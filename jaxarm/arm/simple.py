@@ -1,4 +1,4 @@
-"""The authors' simple kinematic arm (spec §8, arminterface_pipe.py "dummyArm").
+"""The authors' simple kinematic arm ([model: the arms](../model.md#the-arms), arminterface_pipe.py "dummyArm").
 
 Each step is one 10 ms update of the original loop: the joint angle moves by gain x (flexor - extensor excitation);
 muscle lengths are a linear map of the joint angles. No dynamics, no muscles.

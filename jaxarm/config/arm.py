@@ -6,12 +6,14 @@ from dataclasses import dataclass
 
 from jaxarm.config.validate import ConfigError, check_choice, check_interval, check_range
 
-#: Start posture of every reach in the original (shoulder, elbow), rad (spec §6).
+#: Start posture of every reach in the original (shoulder, elbow), rad ([model: task](../model.md#task-and-success)).
 START_POSTURE_RAD = (0.62, 1.53)
-#: Joint ranges used by the task code and the simple arm, degrees (spec §6, msarm.hoc L416-419).
+#: Joint ranges used by the task code and the simple arm, degrees ([model: task](../model.md#task-and-success),
+#: msarm.hoc L416-419).
 SHOULDER_RANGE_DEG = (-10.0, 110.0)
 ELBOW_RANGE_DEG = (0.0, 140.0)
-#: Segment lengths of the authors' planar forward kinematics, m (spec §3, msarm.hoc L406-411).
+#: Segment lengths of the authors' planar forward kinematics, m ([model: closed loop](../model.md#the-closed-loop),
+#: msarm.hoc L406-411).
 ARM_SEGMENTS_M = (0.4634 - 0.173, 0.7169 - 0.4634)
 #: The kinks of the musculoskeletal arm that ``MusculoskeletalArmConfig.smooth`` can soften, by name: the muscle's
 #: (``jaxarm.arm.muscle``) and the joint-limit penalty's.
@@ -39,7 +41,8 @@ class _JointRanges:
 
 @dataclass(frozen=True)
 class SimpleArmConfig(_JointRanges):
-    """The authors' kinematic "dummy" arm (spec §8). One step advances one 10 ms update.
+    """The authors' kinematic "dummy" arm ([model: the arms](../model.md#the-arms)). One step advances one 10 ms
+    update.
 
     Attributes:
         gain_rad: joint-angle change per update per unit of (flexor - extensor) excitation, rad.

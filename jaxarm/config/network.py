@@ -1,4 +1,5 @@
-"""Static configuration of the cortical spiking network (spec §1-§3). Times in ms, lengths in m.
+"""Static configuration of the cortical spiking network ([model: equations](../model.md#equations)). Times in ms,
+lengths in m.
 
 Everything here is hashable and fixed at trace time (sizes, the time step, capacities, which variant of the
 original to run). Values the authors tuned by evolution are traced arrays and live in
@@ -40,7 +41,8 @@ class NetworkConfig:
             ``NetworkSpec.dura_bernal_2015()``). ``sizes`` is a shortcut to its population sizes.
         pmat_scale: in-degree = int(0.5 + pmat * pmat_scale * N_pre) (the original's 0.75 * 6 / scale = 1.125).
         self_connections: "code" lets a cell draw itself as presynaptic partner, as the original did by accident
-            (uninitialised ``prid``, spec §2); "exclude" forbids it (ModelDB 150245's fix).
+            (uninitialised ``prid``, [model: network](../model.md#network-inputs-and-delays)); "exclude" forbids it
+            (ModelDB 150245's fix).
         p_tuning: "code": each P cell fires for lengths in a window 3 steps wide (12.5 mm); "paper": 2 steps (8.33 mm),
             same centres. Step = (max - min) / cells per group = 4.17 mm either way.
         p_length_range_m: (min, max) muscle length covered by the P code, m.
@@ -54,7 +56,8 @@ class NetworkConfig:
             normalisation). With it the EM counts are multiplied by reference / n_EM, so a larger EM population
             drives the muscles as the reference one does (the readout's gain normalised per EM cell).
         readout_clip: clip the motor excitation to [0, 1] (the paper's "thresholded linear" readout). The hoc
-            code does not clip (spec §3, §11.7); False reproduces it.
+            code does not clip ([model: every deviation](../model.md#every-deviation-from-the-original)); False
+            reproduces it.
         readout_bins: length of the EM spike-count history, in interface periods; must cover the longest readout
             window the metaparameters allow plus its lag (200 + 50 ms: 26 bins; the loop checks it).
         spike_capacity: spike-list length per delivery block (lax.top_k) of each spike group (ES, EM, inhibitory)

@@ -1,4 +1,5 @@
-"""The network as data: populations, cell types, pathways, background noise and synaptic physics (spec §1-§2).
+"""The network as data: populations, cell types, pathways, background noise and synaptic physics ([model:
+equations](../model.md#equations)).
 
 A :class:`NetworkSpec` is a frozen, hashable, validated description, in the spirit of NetPyNE's network
 parameters: everything the kernels need to know about *what* the network is (how it is computed lives in
@@ -60,7 +61,8 @@ def _number(owner: str, name: str, value, lo: float, hi: float, lo_open: bool = 
 
 @dataclass(frozen=True)
 class CellType:
-    """INTF6 parameters of one cell type (params.hoc, spec §1) and the receptor its spikes drive.
+    """INTF6 parameters of one cell type (params.hoc, [model: cell](../model.md#cell-intf6-clock-driven)) and the
+    receptor its spikes drive.
 
     ``rmp_mv`` resting potential; ``vth_mv`` resting threshold; ``vblock_mv`` depolarisation block (a cell above it
     does not fire); ``refrac_ms`` absolute refractory period; ``ahpwt_mv`` after-hyperpolarisation per spike;
@@ -185,10 +187,10 @@ class Pathway:
 
 @dataclass(frozen=True)
 class SynapsePhysics:
-    """Constants every cell shares (params.hoc, intf6.mod; spec §1): reversal potentials relative to rest, the NMDA
-    Mg block B(v) = 1 / (1 + exp(-mg_slope_per_mv v) mg_mm / mg0_mm), the membrane clamp, the synaptic decay time
-    constants, the NMDA/AMPA weight ratio (NMAMR) and the largest jump of the sequential event summation (w / E
-    saturates there)."""
+    """Constants every cell shares (params.hoc, intf6.mod; [model: cell](../model.md#cell-intf6-clock-driven)): reversal
+    potentials relative to rest, the NMDA Mg block B(v) = 1 / (1 + exp(-mg_slope_per_mv v) mg_mm / mg0_mm), the membrane
+    clamp, the synaptic decay time constants, the NMDA/AMPA weight ratio (NMAMR) and the largest jump of the sequential
+    event summation (w / E saturates there)."""
 
     e_ampa_mv: float = 65.0
     e_nmda_mv: float = 90.0
@@ -302,10 +304,11 @@ class NetworkSpec:
     # ----- the paper's network -----
     @classmethod
     def dura_bernal_2015(cls) -> "NetworkSpec":
-        """The network of Dura-Bernal et al. 2015 (the original's col.hoc at scale 4, spec §1-§2): populations in
-        the original's global-id order, its pathway table (EM -> IS/ISL absent: EMISFeedBack = 0), its background
-        noise (stim.hoc setwmatex, EXGain 15 included) and INTF6 parameters (params.hoc L71-136). One shared
-        (immutable) object: every NetworkConfig() holds it without rebuilding and re-validating it."""
+        """The network of Dura-Bernal et al. 2015 (the original's col.hoc at scale 4, [model:
+        equations](../model.md#equations)): populations in the original's global-id order, its pathway table (EM ->
+        IS/ISL absent: EMISFeedBack = 0), its background noise (stim.hoc setwmatex, EXGain 15 included) and INTF6
+        parameters (params.hoc L71-136). One shared (immutable) object: every NetworkConfig() holds it without
+        rebuilding and re-validating it."""
         return _paper_spec(cls)
 
     # ----- lookups -----

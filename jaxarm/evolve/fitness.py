@@ -20,7 +20,8 @@ targets. The reaching fitness is registered by the training code, e.g. in a modu
             for t, k in zip(fns, jax.random.split(key, len(fns))):   # a few targets: unrolled is fine
                 k_train, k_test = jax.random.split(k)
                 result = t.test(k_test, t.train(k_train, mp)[0], mp)
-                # spec §7: mean of the test's distance at ~20 ms and at its last sample
+                # the authors' fitness (docs/model.md, Metaparameters): mean of the test's distance at
+                # ~20 ms and at its last sample
                 dist.append(0.5 * (result.distance_m[2] + result.distance_m[-1]))
                 success.append(result.success)
             return jnp.max(jnp.stack(dist)), {"success_rate": jnp.mean(jnp.stack(success).astype(jnp.float32))}

@@ -1,4 +1,5 @@
-"""The authors' fitness for the search (spec §7): train one network per target, test it, worst target's distance.
+"""The authors' fitness for the search ([model: metaparameters](../model.md#metaparameters)): train one network per
+target, test it, worst target's distance.
 
 Per target the distance is the mean of the test's hand–target distance at ~20 ms and at its last sample (the
 original's ``trajAccuracy`` with a 2-element index list); the fitness is the maximum over targets, in m (lower is

@@ -1,5 +1,6 @@
 """The authors' learning rule as array primitives: critic, the reward-modulated update, motor babbling, and the
-tuned metaparameters (spec §4, §5, §7). Tagging runs inside the network kernels; the rules built from these
+tuned metaparameters ([model: learning](../model.md#learning-reward-modulated-stdp),
+[metaparameters](../model.md#metaparameters)). Tagging runs inside the network kernels; the rules built from these
 primitives, behind one interface, are in :mod:`jaxarm.learning.rule` (interface), :mod:`jaxarm.learning.rstdp`,
 :mod:`jaxarm.learning.gradient`, :mod:`jaxarm.learning.perturbation` and :mod:`jaxarm.learning.registry`."""
 from jaxarm.learning.babbling import (EXPLORE_PATTERNS, BabblingConfig, BabblingState, babble,

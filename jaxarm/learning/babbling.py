@@ -1,4 +1,5 @@
-"""Motor babbling: which EM muscle groups get extra background noise, and for how long (spec §5).
+"""Motor babbling: which EM muscle groups get extra background noise, and for how long ([model:
+babbling](../model.md#learning-reward-modulated-stdp)).
 
 As the code did it (msarm.hoc updateArm / SetEMNoiseRate, main.hoc train/test):
 

@@ -1,4 +1,5 @@
-"""The critic: reward or punishment from the change of the hand-target distance (spec §4; msarm.hoc RLUpdate).
+"""The critic: reward or punishment from the change of the hand-target distance ([model:
+learning](../model.md#learning-reward-modulated-stdp); msarm.hoc RLUpdate).
 
 The original, at each RL update, compares the two most recent stored hand-target errors ``err1`` (older) and
 ``err2`` (newer), 10 ms apart and both from before the current arm step (RLMode = 3, COMBERR = 0, Cartesian error):

@@ -1,4 +1,5 @@
-"""The metaparameters the authors tuned by evolution, as a pytree of float arrays (spec §7).
+"""The metaparameters the authors tuned by evolution, as a pytree of float arrays ([model:
+metaparameters](../model.md#metaparameters)).
 
 ``MetaParams.original()`` holds the values of the published model (``main.hoc``, marked "optimized" there). Every field
 is a float array so that evolution can ``vmap`` over sets of them; code that needs an integer (``epochs``,
@@ -7,12 +8,13 @@ is a float array so that evolution can ``vmap`` over sets of them; code that nee
 The authors' evolutionary interface (2016 code, same model) has 21 parameters. We keep the 15 that act on the 2015
 model as the code ran it. Left out, with reasons:
 
-* p7 ``mineligtrdur`` (30.54 ms): not a variable of INTF6; setting it has no effect (spec §4).
+* p7 ``mineligtrdur`` (30.54 ms): not a variable of INTF6; setting it has no effect ([model:
+  learning](../model.md#learning-reward-modulated-stdp)).
 * p8 msarm ``damping``: a parameter of the musculoskeletal arm executable (an arm option, not a learning one).
 * p13: unused; p14 ``COMBERR``, p15/p17 (second training phase with the trajectory error): 2016 paper features,
   off in the 2015 model.
 
-The original's bounds for the search are not available (Supplementary Material not found, spec §12). The table
+The original's bounds for the search are not available (its Supplementary Material could not be found). The table
 :data:`BOUNDS` is ours: each range contains the published value and the 2016 example candidate
 (``stimdata/gen_86_cand_151_params``; except its p18 = 0 s, which made the 2016 code rescale at every 10-ms update),
 and keeps ``learn_rate <= min(maxw)`` so the soft-bounded update can never leave
@@ -89,7 +91,7 @@ class MetaParams:
         return {name: float(str(np.float32(getattr(self, name)))) for name in NAMES}
 
 
-#: The original values (``main.hoc`` setPlastParams/setArmParams/train/test, spec §4-§7).
+#: The original values (``main.hoc`` setPlastParams/setArmParams/train/test, [model: equations](../model.md#equations)).
 ORIGINAL: dict[str, float] = {
     "max_w_scaling": 0.70,
     "learn_rate": 0.040,

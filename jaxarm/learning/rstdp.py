@@ -1,5 +1,6 @@
-"""Reward-modulated STDP with motor babbling, the paper's learning rule (spec §4, §5), behind the learning-rule
-interface (:mod:`jaxarm.learning.rule`).
+"""Reward-modulated STDP with motor babbling, the paper's learning rule ([model:
+learning](../model.md#learning-reward-modulated-stdp), babbling included), behind the learning-rule interface
+(:mod:`jaxarm.learning.rule`).
 
 After every 10 ms training interval at time t (ms since the start of the epoch), in the original's order:
 
@@ -89,7 +90,8 @@ class RSTDP(LearningRule):
         return run.babble, net.wgain
 
     def reinforce(self, x, aux):
-        """One critic signal applied to every plastic synapse with a live tag (spec §4). x = (wgain, pdope_ms)."""
+        """One critic signal applied to every plastic synapse with a live tag ([model:
+        learning](../model.md#learning-reward-modulated-stdp)). x = (wgain, pdope_ms)."""
         (wgain, pdope), (mp, t_ms, signal) = x, aux
         n_plastic = self.loop.net.layout.n_plastic
         maxw = plastic_upper(self.loop.plastic_tables, mp)
@@ -98,9 +100,10 @@ class RSTDP(LearningRule):
         return wgain.at[:n_plastic].set(w_plastic), pdope
 
     def scale(self, wgain, _):
-        """Global synaptic scaling (spec §4): if the weighted total S grew beyond the initial S0, every gain is
-        multiplied by S0/S. Two dot products: the original's per-cell bookkeeping only excludes cells whose outgoing
-        gains are all exactly 0, which soft-bounded multiplicative updates never reach."""
+        """Global synaptic scaling ([model: learning](../model.md#learning-reward-modulated-stdp)): if the weighted
+        total S grew beyond the initial S0, every gain is multiplied by S0/S. Two dot products: the original's per-cell
+        bookkeeping only excludes cells whose outgoing gains are all exactly 0, which soft-bounded multiplicative
+        updates never reach."""
         base, s0 = self.scaling_tables
         factor = s0 / jnp.maximum(jnp.dot(base, wgain), 1e-12)
         return jnp.where((base > 0) & (factor < 1.0), wgain * factor, wgain)  # P->ES inputs are not INTF6 synapses

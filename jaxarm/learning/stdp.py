@@ -1,4 +1,5 @@
-"""Reward-modulated STDP as the original ran it: spike tagging and the dopamine-like update (spec §4).
+"""Reward-modulated STDP as the original ran it: spike tagging and the dopamine-like update ([model:
+learning](../model.md#learning-reward-modulated-stdp)).
 
 Pure functions over plain per-synapse arrays. The network stores synapses per postsynaptic cell with fixed in-degree,
 so per-synapse arrays have shape (n_post, in_degree) and ``presyn`` (same shape) holds the global id of each synapse's
@@ -48,7 +49,8 @@ NEVER_SPIKED_MS = -1e9
 
 @dataclass(frozen=True)
 class EligibilityConfig:
-    """Which form of the learning rule to run. Defaults = the code as it ran (spec §4).
+    """Which form of the learning rule to run. Defaults = the code as it ran ([model:
+    learning](../model.md#learning-reward-modulated-stdp)).
 
     Attributes:
         exponential: scale each update by exp(-(t - tag time)/exp_tau_ms) (EXPELIGTR).

@@ -30,7 +30,7 @@ class EpochSummary(NamedTuple):
     """Per epoch (leading axis = epoch under scan)."""
 
     rates_hz: jnp.ndarray          # (6,) mean firing rate of ES, IS, ISL, EM, IM, IML over the epoch, Hz
-    rates_last10s_hz: jnp.ndarray  # (6,) the same over the epoch's last 10 s (the spec §10 convention)
+    rates_last10s_hz: jnp.ndarray  # (6,) the same over the epoch's last 10 s (the original model's convention)
     mean_wgain: jnp.ndarray        # (n_pathways,) mean gain per pathway at the end of the epoch
     final_distance_m: jnp.ndarray  # () hand–target distance at the end of the epoch, m
     min_distance_m: jnp.ndarray    # () closest approach during the epoch, m

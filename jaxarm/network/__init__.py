@@ -1,5 +1,5 @@
-"""The cortical spiking network of Dura-Bernal et al. 2015 (spec §1-§3), clock-driven and vectorised, built from a
-:class:`~jaxarm.config.spec.NetworkSpec` (the network as data; the paper's by default).
+"""The cortical spiking network of Dura-Bernal et al. 2015 ([model: equations](../model.md#equations)), clock-driven and
+vectorised, built from a :class:`~jaxarm.config.spec.NetworkSpec` (the network as data; the paper's by default).
 
 Modules: :mod:`populations` (sizes, ids, muscle groups), :mod:`wiring` (fixed in-degree wiring in per-post-cell
 layout), :mod:`cell` (the INTF6 port), :mod:`noise` (background Poisson input), :mod:`synapses` (ring-buffer spike

@@ -1,4 +1,5 @@
-"""Clock-driven port of the INTF6 cell (``mod/intf6.mod``, spec §1). Membrane quantities in mV, time in ms.
+"""Clock-driven port of the INTF6 cell (``mod/intf6.mod``, [model: cell](../model.md#cell-intf6-clock-driven)). Membrane
+quantities in mV, time in ms.
 
 State of each network cell (:class:`CellState`, arrays of shape (n_cells,), deviations from rest in mV):
 ``ampa`` (VAM2, distal AMPA), ``nmda`` (VNM2, distal NMDA), ``gaba_prox`` (VGA, from FS cells, tau 10 ms),

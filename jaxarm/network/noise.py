@@ -1,4 +1,5 @@
-"""Background Poisson input per receptor and population (spec §2), with per-group EM rates that babbling changes.
+"""Background Poisson input per receptor and population ([model: network](../model.md#network-inputs-and-delays)), with
+per-group EM rates that babbling changes.
 
 Every network cell has one independent Poisson source per receptor (distal AMPA, proximal GABA, distal GABA; no
 NMDA noise), with the weight and rate its population gives (``Population.noise`` of the spec). The paper's
@@ -126,8 +127,9 @@ def limit_em_events(config: NetworkConfig, noise: NoiseState, max_events) -> Noi
     """Let every EM AMPA lane emit at most ``max_events`` more events (a traced int is fine); other lanes unchanged.
 
     The original's test noise to EM is a NetStim per cell with ``number = tstop * rate / 1000`` (99 for 1 s at
-    99.01 Hz; spec §5): its Poisson train stops after that many events, for about half the cells before the end
-    of the 1 s test. Events beyond the budget within a step are dropped, as the train's last events would be."""
+    99.01 Hz; [model: babbling](../model.md#learning-reward-modulated-stdp)): its Poisson train stops after that many
+    events, for about half the cells before the end of the 1 s test. Events beyond the budget within a step are dropped,
+    as the train's last events would be."""
     em = Populations(config).slice(config.spec.readout)
     return noise._replace(events_left=noise.events_left.at[0, em].set(jnp.asarray(max_events, jnp.int32)))
 

@@ -1,4 +1,5 @@
-"""Populations, global cell ids, cell types and muscle groups, exactly as the original numbers them (spec §2).
+"""Populations, global cell ids, cell types and muscle groups, exactly as the original numbers them ([model:
+network](../model.md#network-inputs-and-delays)).
 
 Global ids follow the order of the spec's populations (:class:`jaxarm.config.spec.NetworkSpec`), which for the
 paper's network is the order of creation in ``col.hoc``: ES 0-191, IS 192-235, ISL 236-255, EM 256-447, IM 448-491,

@@ -1,4 +1,5 @@
-"""Proprioceptive (P) population code and spike generators (spec §3; msarm.hoc assignDP/updateDP, nsloc.mod).
+"""Proprioceptive (P) population code and spike generators ([model: closed loop](../model.md#the-closed-loop); msarm.hoc
+assignDP/updateDP, nsloc.mod).
 
 Tuning: P cell j codes muscle group j % 4 at position k = j // 4 (48 positions per group). With the length range
 [lo, hi] = [0.03, 0.23] m and step w = (hi - lo) / 48 = 4.17 mm, cell k responds to lengths (inclusive bounds)

@@ -1,4 +1,5 @@
-"""Motor readout: EM spikes per muscle group in a lagged window -> 4 muscle excitations (spec §3, msarm.hoc L280-544).
+"""Motor readout: EM spikes per muscle group in a lagged window -> 4 muscle excitations ([model: closed
+loop](../model.md#the-closed-loop), msarm.hoc L280-544).
 
 Every interface period (10 ms) the loop pushes the EM spike counts of the period just ended, per muscle group
 (EM global id % 4), into a history (``ReadoutState.bins``; row i holds the spikes in (t - 10(i+1), t - 10 i] where t

@@ -20,9 +20,10 @@ the number of synapses. For each spike group (``NetworkSpec.spike_groups``; the 
    ``wgain`` of each synapse multiplies the AMPA/GABA weight; one flat scatter-add over the flattened batch of rings
    writes them into slot (spike step + delay) % n_slots;
 3. with plasticity bookkeeping, the same list tags the plastic inputs of every listed cell: ``pdope = t`` (its spike
-   time) where the presynaptic cell's last spike at or before t was at most ``max_plast_t_ms`` earlier (spec §4),
-   by a scatter-max (tags only move forward in time, so max = overwrite). A presynaptic cell that fired later in the
-   same block is looked up by its previous spike (cells keep their last two spike times);
+   time) where the presynaptic cell's last spike at or before t was at most ``max_plast_t_ms`` earlier ([model:
+   learning](../model.md#learning-reward-modulated-stdp)), by a scatter-max (tags only move forward in time, so max =
+   overwrite). A presynaptic cell that fired later in the same block is looked up by its previous spike (cells keep
+   their last two spike times);
 4. if the list could not hold all spikes, further passes take the next ones in the same block (exact; every network
    with spikes left counts the pass in :class:`Counters`). After ``max_passes`` passes anything left is lost and
    counted — a test fails on that.

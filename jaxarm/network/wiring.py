@@ -1,4 +1,5 @@
-"""Fixed in-degree wiring, drawn from a key and stored the way it is made: per postsynaptic cell (spec §2).
+"""Fixed in-degree wiring, drawn from a key and stored the way it is made: per postsynaptic cell ([model:
+network](../model.md#network-inputs-and-delays)).
 
 For every pathway pre -> post each postsynaptic cell draws exactly ``in_degree = int(0.5 + pmat * pmat_scale * N_pre)``
 distinct presynaptic partners uniformly (``convwire``; with ``self_connections="code"`` a cell may draw itself, as
@@ -28,7 +29,8 @@ Layout (``Wiring``, every array may carry leading batch axes under ``vmap``):
   (EM cells project to ~46 cells, inhibitory ones to ~135; ES cells have 13 plastic inputs, inhibitory ones ~100).
 * ``out_overflow``: synapses that did not fit ``out_capacity`` (must be 0; counted, never silent).
 
-Weights are the spec's table (base wmat x pathway gain, spec §2); NMDA = ``nmda_ampa_ratio`` (NMAMR, 0.1) x AMPA.
+Weights are the spec's table (base wmat x pathway gain, [model: network](../model.md#network-inputs-and-delays)); NMDA =
+``nmda_ampa_ratio`` (NMAMR, 0.1) x AMPA.
 """
 from __future__ import annotations
 

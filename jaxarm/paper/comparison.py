@@ -5,8 +5,8 @@
 over the **successful** trained networks (as the paper averaged "across successful trajectories") the mean (SD)
 speed before and after the first entry into the 4 cm circle (m/s), the distance to the target after it (cm) and the
 time inside it (ms); then the dimensionless jerk of every trained and naive test path (:func:`dimensionless_jerk`,
-path-length speed). ``markdown(stats)`` lays them out beside the paper's values (``../shared/spec/reference_values.md``:
-musculoskeletal arm; jerk also for the simple arm). Metric conventions: :mod:`jaxarm.analysis.reach`.
+path-length speed). ``markdown(stats)`` lays them out beside the paper's values (Dura-Bernal et al. 2015, §3.2 and
+Fig. 7: musculoskeletal arm; jerk also for the simple arm). Metric conventions: :mod:`jaxarm.analysis.reach`.
 """
 from __future__ import annotations
 
@@ -37,9 +37,9 @@ PAPER_KEY = {"speed_before_m_s": "speed_before_m_s", "speed_after_m_s": "speed_a
              "distance_after_m": "distance_after_cm", "time_inside_s": "time_inside_ms"}
 
 
-#: The original NEURON model's training run (simple arm, left target, its seeds; spec §10): epoch -> rates (Hz) over
-#: the epoch's last 10 s for ORIGINAL_HISTORY_RATES, then the mean wgain per pathway at its end for
-#: ORIGINAL_HISTORY_GAINS.
+#: The original NEURON model's training run (simple arm, left target, its seeds; [the original model's reference
+#: run](../results.md#the-authors-metaparameters-in-our-model)): epoch -> rates (Hz) over the epoch's last 10 s for
+#: ORIGINAL_HISTORY_RATES, then the mean wgain per pathway at its end for ORIGINAL_HISTORY_GAINS.
 ORIGINAL_HISTORY = {
     1: (3.46, 2.07, 1.65, 0.78, 0.80, 0.68, 1.014, 1.046, 1.001, 1.015, 1.021, 0.994, 0.990),
     2: (2.94, 1.91, 1.31, 0.43, 0.64, 0.53, 1.029, 1.098, 1.003, 1.033, 1.047, 0.995, 0.978),
@@ -110,7 +110,7 @@ def beside_paper(stats: dict) -> dict:
     :data:`MEASURES` (units as their labels; ratio = ours / the paper's, None where the paper reports nothing: the
     after-entry measures exist for the musculoskeletal arm only, and the paper's jerk is over both targets; its
     absolute jerk values cannot come from its formula for movements starting at rest, so compare the trained/naive
-    ratio, ``reference_values.md``)."""
+    ratio)."""
     arm, target = stats["arm"], stats["target"]
     out = {}
     for key, _ in MEASURES:
@@ -179,8 +179,9 @@ def markdown(stats: list[dict]) -> str:
     return "\n".join(lines)
 
 
-#: The original NEURON model's 1 s test after that training (simple arm, left target, its seeds; spec §10): hand–target
-#: distance (cm) at test times (ms), as the spec reports them ("15.1 cm until t≈130 ms" gives the first two points).
+#: The original NEURON model's 1 s test after that training (simple arm, left target, its seeds; [the original
+#: model's reference run](../results.md#the-authors-metaparameters-in-our-model)): hand–target distance (cm) at test
+#: times (ms), as the spec reports them ("15.1 cm until t≈130 ms" gives the first two points).
 ORIGINAL_TEST_DISTANCE_CM = {0: 15.1, 130: 15.1, 200: 12.9, 400: 7.3, 600: 4.3, 700: 3.5, 800: 1.7, 900: 2.5,
                              1000: 3.3}
 #: Its closest approach and final distance, cm; its joint angles at the test's end (shoulder, elbow), rad.
@@ -259,7 +260,8 @@ def per_network_history(history) -> np.ndarray:
 
 
 def original_history_percentiles(history) -> list[tuple[int, list[tuple[float, float, float]]]]:
-    """Where the original's one training run sits among our networks, epoch by epoch (spec §10 beside ours).
+    """Where the original's one training run sits among our networks, epoch by epoch ([the original model's reference
+    run](../results.md#the-authors-metaparameters-in-our-model) beside ours).
 
     ``history``: a run's ``history.npz`` as a mapping (:func:`per_network_history`). Returns, for every epoch that
     both have, (epoch, [(percentile, p10, p90) per column of :data:`ORIGINAL_HISTORY`]): the percentile of the

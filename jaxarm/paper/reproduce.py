@@ -46,7 +46,7 @@ from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
 from jaxarm.task.registry import DEFAULT as TASK_DEFAULT, TASKS
 
-#: Trained networks reaching the target in the paper (§3.2; spec reference_values.md), out of PAPER_N: its 30 best
+#: Trained networks reaching the target in the paper (Dura-Bernal et al. 2015, §3.2), out of PAPER_N: its 30 best
 #: metaparameter configurations of the search, one network each (our mode (b)).
 PAPER_SUCCESS: dict[str, dict[str, int]] = {"musculoskeletal": {"left": 29, "bottom": 26},
                                             "simple": {"left": 28, "bottom": 27}}

@@ -93,7 +93,7 @@ VALUES: dict[str, Sourced] = {
                                                     "(256 read, 16 judged) costs under 1 ms of the 2 ms tick, a "
                                                     "clean stream brings 1 per tick (benchmarks/wam.py --receiver)"),
     # --- safety envelope (jaxarm.robot.safety; modelled on libbarrett's SafetyModule) ------------------------------
-    "accept_raw": Sourced(False, "-", "issue 26: the headerless ex11 format (DOF x float64) is framed by length "
+    "accept_raw": Sourced(False, "-", "the headerless ex11 format (DOF x float64) is framed by length "
                                       "only, so any 16- or 32-byte datagram parses as a target (the 16 bytes "
                                       "'GET / HTTP/1.1\\r\\n' give ~1e98 rad); refused unless --accept-raw"),
     "target_inset_rad": Sourced(0.05, "rad", "own choice (the receiver's former clamp margin): accepted targets "

@@ -1,6 +1,6 @@
-"""Junk datagrams for testing a robot link's robustness (issue 26), and a sender.
+"""Junk datagrams for testing a robot link's robustness (the robot page's safety envelope), and a sender.
 
-:func:`junk_datagrams` cycles through the kinds of junk of issue 26: random bytes (1-64 of them), an empty
+:func:`junk_datagrams` cycles through the kinds of junk a link meets: random bytes (1-64 of them), an empty
 datagram, NaN doubles (16 bytes), infinite doubles (32 bytes), two doubles of +-1e9 (16 bytes), a 4000-byte blob
 and the 16 bytes ``GET / HTTP/1.1\\r\\n``. Seeded: the same seed gives the same datagrams.
 

@@ -20,8 +20,8 @@ A target (4 WAM joint angles, rad, after the joint map) is judged in this order:
    tick. The first target of a link (at start, after a timeout or a hold) is only range-checked: the controller
    then moves there at its own speed limit (PosToVel clips at ``pos_to_vel_limit_rad_s``).
 
-Why reject rather than clamp: a clamped absurd target is still followed, to the joint limit (issue 26: 16 bytes
-of HTTP drove the robot to its stops). A rejected one leaves the robot on its last good target.
+Why reject rather than clamp: a clamped absurd target is still followed, to the joint limit (16 bytes of HTTP
+drove the robot to its stops in a test). A rejected one leaves the robot on its last good target.
 
 The velocity guard (:func:`velocity_guard`) is the envelope's second half, on the robot's motion: a joint
 moving faster than its guard speed (:func:`guard_speed`: ``velocity_warning_fraction`` of its limit, lower still

@@ -1,4 +1,5 @@
-"""Static configuration of the centre-out reaching task (spec §6; SI units: m, s, rad).
+"""Static configuration of the centre-out reaching task ([model: task](../model.md#task-and-success); SI units: m, s,
+rad).
 
 The targets are the authors' joint-angle targets (``msarm.hoc`` setTargByID, ``centerOutTask=1``: 15.1 cm from the start
 hand position); their hand positions follow from the authors' forward kinematics
@@ -84,10 +85,11 @@ class TaskConfig:
         update_interval_s: the closed loop's period (arm update, readout, error sample), s (original aDT = 10 ms).
         segments_m: (upper arm, forearm) lengths of the forward kinematics that define the target positions, m.
         test_em_noise_events: "unlimited" (default: every EM cell's test noise runs for the whole test) or
-            "netstim": as the original's NetStims with ``number = tstop * rate / 1000`` (spec §5), each EM cell's
-            AMPA test noise stops once it has emitted ceil(test duration in ms x em_noise_rate_test_hz / 1000)
-            events (100 for 1 s at 99.01 Hz; a NetStim stops when its count reaches ``number``), which for about
-            half the cells happens before the 1 s test ends. Training noise is never limited.
+            "netstim": as the original's NetStims with ``number = tstop * rate / 1000`` ([model:
+            babbling](../model.md#learning-reward-modulated-stdp)), each EM cell's AMPA test noise stops once it has
+            emitted ceil(test duration in ms x em_noise_rate_test_hz / 1000) events (100 for 1 s at 99.01 Hz; a NetStim
+            stops when its count reaches ``number``), which for about half the cells happens before the 1 s test ends.
+            Training noise is never limited.
     """
 
     #: the task interface (:mod:`jaxarm.task.interface`): a network's test key is its key folded with this

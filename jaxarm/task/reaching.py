@@ -1,4 +1,5 @@
-"""Centre-out reaching: target positions, hand-target distance, success (spec §6; SI units: m, s).
+"""Centre-out reaching: target positions, hand-target distance, success ([model: task](../model.md#task-and-success); SI
+units: m, s).
 
 Everything here is a pure function of arrays, so the closed loop can ``vmap`` over targets (pass target positions as
 arrays, not names) and over networks.

@@ -15,8 +15,9 @@ The presets behind the README's tables sit in this folder; the sets of every oth
 (``docs/searches.md``) in ``archive/``, still loadable by name and listed by ``jaxarm reproduce --list-presets
 --all``.
 
-The built-in preset ``original`` is :meth:`MetaParams.original` (the authors' values from ``main.hoc``, spec §7); it
-has no top list: the authors' other 29 configurations are not available.
+The built-in preset ``original`` is :meth:`MetaParams.original` (the authors' values from ``main.hoc``, [model:
+metaparameters](../model.md#metaparameters)); it has no top list: the authors' other 29 configurations are not
+available.
 
 Making a preset from a finished search (its ``top_k.json`` and ``history.json``)::
 
