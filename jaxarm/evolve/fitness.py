@@ -28,7 +28,7 @@ targets. The reaching fitness is registered by the training code, e.g. in a modu
         return fitness.Fitness(fn, network_seconds_per_eval=len(options.targets) * (train_s + test_s),
                                ignores=("epochs",))   # when the number of epochs is static
 
-    fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (spec §7)")
+    fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (the authors' fitness)")
 
 Registered here: ``quadratic`` (a noisy quadratic with a known optimum inside the bounds, for testing the engine) and
 ``quadratic-diverging`` (the same, NaN on part of the space, for testing the failure handling).

@@ -159,7 +159,7 @@ def make_centre_out(options: fitness.FitnessOptions, margin_m: float = 0.02) -> 
                            ignores=("epochs",), implied=(("epochs", float(cfg.epochs)),))
 
 
-fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (spec §7)")
+fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (the authors' fitness)")
 fitness.register("reaching-closest", lambda options: make_reaching(options, _closest_distance),
                  "worst target's closest approach in the test, m (the paper's success criterion, not its fitness)")
 fitness.register("reaching-shortfall", lambda options: make_reaching(options, _shortfall, jnp.mean),

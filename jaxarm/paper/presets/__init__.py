@@ -164,7 +164,7 @@ def original() -> Preset:
         name=ORIGINAL_NAME,
         description="the authors' metaparameters (main.hoc, marked 'optimized'); no top-30 list is available",
         arms=("musculoskeletal", "simple"), best=dict(ORIGINAL), top=(),
-        provenance={"source": "the authors' values from main.hoc, spec §7 (jaxarm.learning.metaparams.ORIGINAL)",
+        provenance={"source": "the authors' values from main.hoc (jaxarm.learning.metaparams.ORIGINAL)",
                     "command": None, "seed": None, "cost": None, "date": None})
 
 
