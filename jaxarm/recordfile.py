@@ -32,14 +32,15 @@ def earlier_windows(path: Path, now, *, seeds, networks) -> dict[str, dict[str, 
 
 def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms: float, interval_ms: float,
                 populations, pop_start, pop_stop, group, capacity: dict[str, int], config: RecordConfig,
-                arm: str, earlier: dict[str, dict[str, np.ndarray]] | None = None) -> Path:
+                arm: str, earlier: dict[str, dict[str, np.ndarray]] | None = None, target_group=None) -> Path:
     """Write ``spikes.npz``. ``windows``: name -> {"recording": a host Recording batch (networks first),
     "start_step": int, "stop_step": int}; only the networks ``networks`` (indices) are written. ``earlier``
     (:func:`earlier_windows`): windows of an earlier write kept as they were, after these.
 
     Keys: ``windows`` (names), ``seeds``, ``networks``, ``dt_ms``, ``interval_ms``, ``n_all``, ``populations``,
     ``pop_start``/``pop_stop`` (global id ranges), ``group`` (n_all,: the muscle group, 0..3 in
-    :data:`jaxarm.arm.GROUPS` order, an EM cell drives or a P cell senses; -1 for the other cells), ``max_rate_hz``,
+    :data:`jaxarm.arm.GROUPS` order, an EM cell drives or a P cell senses; -1 for the other cells), with a target
+    code (``target_group`` given) ``target_group`` (n_all,: a target-code cell's direction group; -1 elsewhere), ``max_rate_hz``,
     ``arm``; per window W: ``W.step`` (int32 clock
     steps since the run's start), ``W.cell`` (int16 global ids), ``W.offsets`` (network r's spikes are
     offsets[r]:offsets[r+1]), ``W.t_start_ms``/``W.t_stop_ms``, ``W.counts`` (networks, n_all: the network's own
@@ -57,6 +58,8 @@ def save_spikes(path: Path, windows: dict[str, dict], *, seeds, networks, dt_ms:
                            "pop_stop": np.asarray(pop_stop, np.int32), "group": np.asarray(group, np.int8),
                            "max_rate_hz": np.float64(config.max_rate_hz),
                            "bytes_per_slot": np.int32(BYTES_PER_SLOT), "arm": np.asarray(arm)}
+    if target_group is not None:
+        out["target_group"] = np.asarray(target_group, np.int8)
     for name, w in windows.items():
         rec, start = w["recording"], int(w["start_step"])
         steps, cells, offsets = [], [], [0]
@@ -127,6 +130,8 @@ class SpikeFile:
         self.pop_stop = dict(zip(self.populations, self.data["pop_stop"].tolist()))
         self.n_all = int(self.data["n_all"])
         self.group = self.data["group"].astype(np.int64)
+        #: a target-code cell's direction group, -1 elsewhere (None: a file of a network without a target code)
+        self.target_group = self.data["target_group"].astype(np.int64) if "target_group" in self.data else None
         self.arm = str(self.data["arm"])
 
     def __len__(self):
@@ -176,12 +181,19 @@ def write_run_records(run, tests: dict) -> dict:
     group = np.full(net.n_all, -1, np.int8)
     group[pops.slice(net.spec.readout)] = pops.em_groups()
     group[pops.slice(net.spec.proprio)] = pops.p_groups()
+    target_group = None
+    if net.spec.target_codes:   # cell k of a target code fires for direction k % groups (jaxarm.network.proprio)
+        target_group = np.full(net.n_all, -1, np.int8)
+        for name in net.spec.target_codes:
+            size, groups = pops.stop[name] - pops.start[name], net.spec.population(name).groups
+            target_group[pops.slice(name)] = np.arange(size) % groups
     networks = run.recorded_networks()
     earlier = earlier_windows(run.out / SPIKES_FILE, windows, seeds=run.seeds, networks=networks)
     save_spikes(run.out / SPIKES_FILE, windows, seeds=run.seeds, networks=networks, dt_ms=net.dt_ms,
                 interval_ms=net.interface_ms, populations=net.populations,
                 pop_start=[pops.start[p] for p in net.populations], pop_stop=[pops.stop[p] for p in net.populations],
-                group=group, capacity=run.record_capacity, config=run.record, arm=run.config.arm, earlier=earlier)
+                group=group, capacity=run.record_capacity, config=run.record, arm=run.config.arm, earlier=earlier,
+                target_group=target_group)
     files = [SPIKES_FILE]
     if run.config.arm == "musculoskeletal":
         from jaxarm.arm.musculoskeletal import GROUP_MUSCLES

@@ -122,6 +122,20 @@ def test_the_command_line_trains_and_tests_the_eight_targets(tmp_path):
     assert "centre-out" in manifest["skipped"]["reach_paths"]
     drawn = np.load(tmp_path / "fig" / "raster.npz")
     assert len(drawn["t_ms"]) == spikes[f"test_{CENTRE_OUT_8[0]}.counts"][0].sum()
+    # the target code's cells are drawn by direction group (cell k in group k % 8, as the network assigns them), so
+    # the group that fires in a target's test is one block of rows, and only that group fires
+    from jaxarm.recordfile import SpikeFile
+    from jaxarm.viz.figures import cell_layout
+
+    f = SpikeFile(out / "rec" / "spikes.npz")
+    lo, hi = f.pop_start["T"], f.pop_stop["T"]
+    assert f.target_group[lo:hi].tolist() == [k % 8 for k in range(hi - lo)]
+    row = cell_layout(f)[0]
+    for k, target in enumerate(CENTRE_OUT_8):
+        rows = np.sort(row[lo:hi][f.target_group[lo:hi] == k])
+        assert np.all(np.diff(rows) == 1)
+        fired = f.get(f"test_{target}", "counts")[0][lo:hi] > 0
+        assert set(f.target_group[lo:hi][fired].tolist()) == {k}
 
 
 @pytest.mark.slow   # compiles a centre-out training and test for two batch sizes

@@ -167,7 +167,8 @@ def _write_csv(path: Path, header: list[str], rows) -> Path:
 
 def cell_layout(f: SpikeFile):
     """Where each cell is drawn: (row (n_all,) int, top to bottom; colour (n_all, 4) RGBA; bands {pop: (lo, hi)}).
-    P and EM cells are sorted by muscle group so each group is one block of its colour."""
+    P and EM cells are sorted by muscle group so each group is one block of its colour, and a target code's cells by
+    direction group (so the group of the current target is one block)."""
     from matplotlib.colors import to_rgba
 
     row = np.empty(f.n_all, np.int64)
@@ -179,6 +180,8 @@ def cell_layout(f: SpikeFile):
             ids = ids[np.lexsort((ids, f.group[ids]))]
             color[ids] = np.array([to_rgba(GROUP_COLORS[g]) for g in f.group[ids]])
         else:
+            if f.target_group is not None and len(ids) and f.target_group[ids[0]] >= 0:
+                ids = ids[np.lexsort((ids, f.target_group[ids]))]
             color[ids] = to_rgba(pop_color(f, pop))
         row[ids] = y + np.arange(len(ids))
         bands[pop] = (y, y + len(ids))
