@@ -128,8 +128,7 @@ def write_outputs(run, trained_res, naive_res, history, wall_s, epochs_run, comp
     if getattr(run, "record", None) is not None:
         from jaxarm.recordfile import write_run_records
 
-        results["record"] = write_run_records(run, run.test_recordings(trained_res)
-                                              | run.test_recordings(naive_res, "naive_test"))
+        results["record"] = write_run_records(run, trained_res, naive_res)
         (run.out / "results.json").write_text(json.dumps(results, indent=1))
     return results
 

@@ -162,13 +162,14 @@ class SpikeFile:
         return nets.index(network)
 
 
-def write_run_records(run, tests: dict) -> dict:
+def write_run_records(run, trained_res, naive_res) -> dict:
     """``spikes.npz`` (the tests' and recorded epochs' spikes) and, for the musculoskeletal arm, ``muscles.npz``
-    (the tests' muscles) of a recording run (a :class:`jaxarm.run.Runner`); ``tests``: {window: Recording of the
-    real networks} of its tests (:meth:`~jaxarm.run.Runner.test_recordings`: ``test`` and ``naive_test``, or one
-    window per target of a task of several). Returns what results.json says about the files."""
+    (the tests' muscles) of a recording run (a :class:`jaxarm.run.Runner`) and its trained and naive test results:
+    windows ``test`` and ``naive_test``, or one per target of a task of several
+    (:meth:`~jaxarm.run.Runner.test_recordings`). Returns what results.json says about the files."""
     from jaxarm.network.populations import Populations
 
+    tests = run.test_recordings(trained_res) | run.test_recordings(naive_res, "naive_test")
     net, task = run.config.network, run.config.task
     steps = net.steps_per_interface
     windows = {name: {"recording": rec, "start_step": 0, "stop_step": task.test_steps * steps}

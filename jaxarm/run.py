@@ -232,13 +232,13 @@ class Runner:
     def test_windows(self, what: str = "test") -> list[str]:
         """The recorded windows of a test (``what``: test, naive_test): ``what`` itself for a task of one target,
         ``what_TARGET`` for each target of a task that tests several (its test's leading target axis)."""
-        targets = getattr(self.task, "targets", None)
-        return [what] if isinstance(self.task, TaskConfig) or targets is None else [f"{what}_{t}" for t in targets]
+        targets = getattr(self.task, "targets", None)   # reaching's TaskConfig has one target, no `targets`
+        return [what] if targets is None else [f"{what}_{t}" for t in targets]
 
     def test_recordings(self, result: TestResult, what: str = "test") -> dict:
         """{window: the host Recording of the real networks} of a test's result (:meth:`test_windows`)."""
         names = self.test_windows(what)
-        if len(names) == 1 and names[0] == what:
+        if names == [what]:
             return {what: result.record}
         return {name: jax.tree.map(lambda x, k=k: np.asarray(x)[:, k], result.record) for k, name in enumerate(names)}
 

@@ -152,8 +152,7 @@ def write_outputs(run: Runner, trained_res, naive_res, history, wall_s, epochs_r
     if run.record is not None:   # a window per target: test_right, ..., naive_test_right, ...
         from jaxarm.recordfile import write_run_records
 
-        results["record"] = write_run_records(run, run.test_recordings(trained_res)
-                                              | run.test_recordings(naive_res, "naive_test"))
+        results["record"] = write_run_records(run, trained_res, naive_res)
     if parallel.is_main_process():
         run.out.mkdir(parents=True, exist_ok=True)
         (run.out / "results.json").write_text(json.dumps(results, indent=1))

@@ -118,11 +118,9 @@ def jerk_energy(xy, dt, where=None) -> np.ndarray:
     energy ratio times (L_naive / L_trained)².
     """
     j2 = np.sum(jerk(xy, dt) ** 2, axis=-1)
-    weight = np.full(j2.shape[-1], float(dt))
-    weight[[0, -1]] *= 0.5
     if where is not None:
         j2 = np.where(where, j2, 0.0)
-    return j2 @ weight
+    return float(dt) * (np.sum(j2, axis=-1) - 0.5 * (j2[..., 0] + j2[..., -1]))
 
 
 def dimensionless_jerk(xy, dt, normalise: str = "mean") -> np.ndarray:
@@ -144,8 +142,7 @@ def dimensionless_jerk(xy, dt, normalise: str = "mean") -> np.ndarray:
         raise ValueError(f"dt = {dt!r}: the sample period must be > 0 s")
     xy_in, xy = xy, _float64(xy)
     duration = (xy.shape[-2] - 1) * float(dt)
-    j2 = np.sum(jerk(xy, dt) ** 2, axis=-1)
-    integral = float(dt) * (np.sum(j2, axis=-1) - 0.5 * (j2[..., 0] + j2[..., -1]))
+    integral = jerk_energy(xy, dt)
     if normalise == "mean":
         v = path_length(xy) / duration
     else:
