@@ -305,8 +305,6 @@ def train_main(argv: list[str] | None = None) -> int:
         parallel_cli.start_from_arguments(args)
         configs = _configs(args)
         overrides = _parse_overrides(args.overrides)
-        if "epochs" in overrides:
-            raise ConfigError("--set epochs: use --epochs for the training length")
         record = record_config(args)
     except ConfigError as e:
         ap.error(str(e))
@@ -360,16 +358,15 @@ def _train_targets(ap, args, configs, mp, record) -> int:
 
 def preset_metaparams(args) -> dict[str, float]:
     """The metaparameters ``--preset NAME [--set-from-preset INDEX]`` name ({} without ``--preset``: the authors'),
-    and ``args.epochs`` when not given: the preset's protocol's, else its set's ``epochs`` (12 without a preset).
+    and ``args.epochs`` when not given: the preset's protocol's (the paper's 12 without a preset).
     :class:`ConfigError` in one line for an unknown name or an index out of range."""
-    from jaxarm.learning.metaparams import ORIGINAL
     from jaxarm.paper import presets
 
     if args.preset is None:
         if args.set_from_preset is not None:
             raise ConfigError(f"--set-from-preset {args.set_from_preset}: give the preset with --preset NAME")
         values = {}
-        epochs = ORIGINAL["epochs"]
+        epochs = presets.PAPER_EPOCHS
     else:
         try:
             preset = presets.load(args.preset)
@@ -386,9 +383,9 @@ def preset_metaparams(args) -> dict[str, float]:
                               f"give an index in [0, {len(preset.top) - 1}]")
         else:
             values = preset.top[i]["metaparams"]
-        epochs = preset.protocol["epochs"] if preset.protocol else values["epochs"]
+        epochs = preset.epochs
     if args.epochs is None:
-        args.epochs = int(round(epochs))
+        args.epochs = epochs
     return dict(values)
 
 
@@ -400,6 +397,8 @@ def _parse_overrides(items: list[str]) -> dict[str, float]:
     for item in items:
         name, sep, value = item.partition("=")
         name = name.strip()
+        if name == "epochs":
+            raise ConfigError("--set epochs: use --epochs for the training length")
         if not sep or name not in BOUNDS:
             raise ConfigError(f"--set {item!r}: expected NAME=VALUE with NAME one of {', '.join(BOUNDS)}")
         try:

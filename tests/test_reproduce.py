@@ -61,7 +61,7 @@ def test_unknown_preset_is_a_clear_error(capsys, tmp_path):
 def test_preset_validation_names_field_and_range():
     with pytest.raises(ConfigError, match=r"best.learn_rate = 0.5 is out of range; allowed \[0.001, 0.2\]"):
         presets.Preset(name="x", description="", arms=("simple",), best={**ORIGINAL, "learn_rate": 0.5})
-    with pytest.raises(ConfigError, match="missing epochs"):
+    with pytest.raises(ConfigError, match="missing explore_tot"):
         presets.Preset(name="x", description="", arms=("simple",), best={k: ORIGINAL[k] for k in NAMES[:-1]})
     with pytest.raises(ConfigError, match=r"top\[1\].v_em_max"):
         presets.Preset(name="x", description="", arms=("simple",), best=ORIGINAL,
@@ -348,7 +348,7 @@ def test_a_presets_protocol_sets_its_default_length(tmp_path):
     from jaxarm.paper.reproduce import reproduction_plan
 
     ms = presets.load("msarm-cmaes-2cm-rerank")
-    assert ms.protocol["epochs"] == 12 and {float(m.epochs) for m in ms.top_metaparams()} == {4.0}
+    assert ms.protocol["epochs"] == 12 and ms.epochs == 12
     plan = reproduction_plan(ms, "musculoskeletal", None, None, 30, {}, presets.PRESET_DIR)
     assert {s["epochs"] for modes in plan.values() for s in modes.values()} == {12}
     plan = reproduction_plan(ms, "musculoskeletal", ["left"], 3, 30, {}, presets.PRESET_DIR)
@@ -356,6 +356,15 @@ def test_a_presets_protocol_sets_its_default_length(tmp_path):
     assert presets.Preset.from_json(ms.to_json()).protocol == ms.protocol
     with pytest.raises(ConfigError, match="protocol = .*must be"):
         presets.Preset(name="x", description="", arms=("simple",), best=ORIGINAL, protocol={"epochs": 0})
+    # a preset saved when sets carried `epochs` and `max_w_scaling`: the sets' epochs is its protocol, both dropped
+    old = {**ORIGINAL, "max_w_scaling": 0.7, "epochs": 6.0}
+    p = presets.Preset(name="old", description="", arms=("simple",), best=old, top=({"metaparams": old},))
+    assert p.epochs == 6 and p.best == ORIGINAL and p.top[0]["metaparams"] == ORIGINAL
+    assert reproduction_plan(p, "simple", ["left"], None, 30, {}, presets.PRESET_DIR)["left"]["seeds"]["epochs"] == 6
+    assert presets.Preset(name="new", description="", arms=("simple",), best=ORIGINAL).epochs == 12   # the paper's
+    with pytest.raises(ConfigError, match=r"sets' epochs \[4.0, 6.0\]"):
+        presets.Preset(name="old", description="", arms=("simple",), best=old,
+                       top=({"metaparams": {**old, "epochs": 4.0}},))
 
 
 def test_a_result_names_its_date_machine_and_commit():

@@ -39,7 +39,7 @@ def test_preset_metaparameters_are_the_files(tmp_path, monkeypatch, index):
     code, err, caught = _train(argv + ([] if index is None else ["--set-from-preset", str(index)]), monkeypatch)
     assert code == 0, err
     assert caught["mp"] == pytest.approx(want, rel=1e-6)
-    assert caught["epochs"] == [int(want["epochs"])]            # the preset's own length (6), not the paper's 12
+    assert caught["epochs"] == [stored["protocol"]["epochs"]] == [6]   # the preset's length, not the paper's 12
 
 
 def test_preset_protocol_epochs_and_set_on_top(tmp_path, monkeypatch):

@@ -119,11 +119,15 @@ def evolve_main(argv: list[str] | None = None) -> int:
     from jaxarm.evolve.runner import run_search
     from jaxarm.evolve.search import EvolveConfig
     from jaxarm.evolve.space import SearchSpace
-    from jaxarm.learning.metaparams import ORIGINAL
+    from jaxarm.learning.metaparams import ORIGINAL, RETIRED
 
     try:
         freeze = {k: (ORIGINAL[k] if v is None and k in ORIGINAL else v)
                   for k, v in _pairs(args.freeze, "freeze").items()}
+        for name in [k for k in freeze if k in RETIRED]:   # commands recorded before these names left
+            print(f"jaxarm evolve: --freeze {name}: no longer a metaparameter ({RETIRED[name]}); dropped",
+                  file=sys.stderr)
+            del freeze[name]
         start = _pairs(args.start, "start")
         strategy_params = _pairs(args.strategy_param, "strategy-param")
         for what, d in (("start", start), ("strategy-param", strategy_params)):
@@ -139,11 +143,10 @@ def evolve_main(argv: list[str] | None = None) -> int:
         search = [s.strip() for s in args.search.split(",") if s.strip()] or None
         ignored = [n for n in fitness.ignores if n not in freeze]   # searched or frozen by default alike
         if ignored:
-            implied = dict(fitness.implied)
             if parallel.is_main_process():
                 print(f"jaxarm evolve: {args.fitness} does not use {', '.join(ignored)}: frozen at "
-                      + ", ".join(f"{n}={implied.get(n, ORIGINAL[n])}" for n in ignored))
-            freeze.update({n: implied.get(n, ORIGINAL[n]) for n in ignored})
+                      + ", ".join(f"{n}={ORIGINAL[n]}" for n in ignored))
+            freeze.update({n: ORIGINAL[n] for n in ignored})
             search = None if search is None else [n for n in search if n not in ignored]
             if search == []:
                 raise ConfigError(f"--search: {args.fitness} uses none of the fields given")
@@ -155,6 +158,8 @@ def evolve_main(argv: list[str] | None = None) -> int:
                               eval_batch_size=args.eval_batch)
         meta = {"name": args.fitness, "arm": options.arm, "targets": list(options.targets), "train_s": options.train_s,
                 "network_seconds_per_eval": fitness.network_seconds_per_eval}
+        if fitness.epochs is not None:  # how long an evaluation trains: the protocol of a preset made from it
+            meta["epochs"] = int(fitness.epochs)
         if options.dt_ms is not None:   # recorded only when given, so searches from before --dt-ms still resume
             meta["dt_ms"] = options.dt_ms
         if network is not None:         # the same: only a network other than the paper's is recorded

@@ -26,7 +26,7 @@ targets. The reaching fitness is registered by the training code, e.g. in a modu
                 success.append(result.success)
             return jnp.max(jnp.stack(dist)), {"success_rate": jnp.mean(jnp.stack(success).astype(jnp.float32))}
         return fitness.Fitness(fn, network_seconds_per_eval=len(options.targets) * (train_s + test_s),
-                               ignores=("epochs",))   # when the number of epochs is static
+                               epochs=train_s // 30)   # how long an evaluation trains: its presets say so
 
     fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (the authors' fitness)")
 
@@ -56,7 +56,7 @@ class FitnessOptions:
         arm: a name of :data:`jaxarm.arm.registry.ARMS`, "simple" or "musculoskeletal".
         targets: target names (see :data:`jaxarm.task.config.TARGET_ANGLES_RAD`); the paper's are left and bottom.
         train_s: simulated training length per evaluation, s (short for a fast proxy; the paper's protocol is
-            12 epochs x 30 s = 360 s), or ``None`` to train for the candidate's own ``epochs`` x 30 s.
+            12 epochs x 30 s = 360 s), or ``None`` for the fitness's default (the paper's protocol).
         dt_ms: the network's clock step, ms, or ``None`` for NetworkConfig's default (0.25 ms).
         network: the NetworkConfig the networks are built from (``--network``, ``--network-scale``), or ``None`` for
             the paper's; ``dt_ms``, when given, replaces its clock step.
@@ -99,16 +99,17 @@ class Fitness(NamedTuple):
 
     ``network_seconds_per_eval``: simulated network-seconds one call of ``fn`` runs (0 for a benchmark); the progress
     line multiplies it by evaluations per second.
-    ``ignores``: metaparameters ``fn`` does not read (e.g. ``epochs`` when the training length is static); ``jaxarm
-    evolve`` freezes them rather than search directions that cannot matter, at the value in ``implied`` when there
-    is one (what ``fn`` effectively uses, e.g. ``epochs`` = the static number of training epochs, so the found sets
-    record how they were evaluated), else at the published value.
+    ``ignores``: metaparameters ``fn`` does not read (e.g. a noise rate a rule without babbling never uses);
+    ``jaxarm evolve`` freezes them at the published value rather than search directions that cannot matter.
+    ``epochs``: the training epochs one evaluation runs (None for a benchmark that trains nothing); the search
+    records it, and a preset made from the search takes it as its protocol, so the found sets say how they were
+    evaluated.
     """
 
     fn: Callable
     network_seconds_per_eval: float = 0.0
     ignores: tuple = ()
-    implied: tuple = ()     # ((name, value), ...) of ignored fields
+    epochs: int | None = None
 
 
 class _Entry(NamedTuple):
@@ -187,7 +188,7 @@ def quadratic_optimum() -> MetaParams:
 def make_quadratic(noise_std: float = 0.01, diverge_above: float | None = None) -> Callable:
     """Noisy quadratic benchmark: ``mean_i (u_i - u*_i)^2 + noise_std * N(0, 1)``.
 
-    ``u`` is ``mp`` on the unit cube of :data:`BOUNDS` (all 15 fields; a frozen field adds a constant), ``u*`` is
+    ``u`` is ``mp`` on the unit cube of :data:`BOUNDS` (every field; a frozen field adds a constant), ``u*`` is
     :data:`QUADRATIC_OPTIMUM_UNIT`, so the noiseless minimum is 0 at :func:`quadratic_optimum`. The noise is drawn
     from ``key``: a candidate's seeds differ, the same seed gives the same value. With ``diverge_above`` the fitness
     is NaN wherever ``learn_rate``'s unit coordinate exceeds it (a stand-in for a diverged network).

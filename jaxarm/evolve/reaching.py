@@ -113,9 +113,8 @@ def make_reaching(options: fitness.FitnessOptions, per_target=_authors_distance,
         return value, {"success_rate": jnp.mean(jnp.stack(success).astype(jnp.float32))}
 
     test_s = fns[0].loop.config.task.test_duration_s
-    epochs = fns[0].loop.config.task.epochs
     return fitness.Fitness(fn, network_seconds_per_eval=len(options.targets) * (train_s + test_s),
-                           ignores=("epochs",), implied=(("epochs", float(epochs)),))
+                           epochs=fns[0].loop.config.task.epochs)
 
 
 def _centre_out_task(targets, train_s: float):
@@ -156,7 +155,7 @@ def make_centre_out(options: fitness.FitnessOptions, margin_m: float = 0.02) -> 
     cfg = task.task_config()
     return fitness.Fitness(fn, network_seconds_per_eval=cfg.epochs * cfg.epoch_duration_s
                            + len(task.targets) * cfg.test_duration_s,
-                           ignores=("epochs",), implied=(("epochs", float(cfg.epochs)),))
+                           epochs=cfg.epochs)
 
 
 fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (the authors' fitness)")

@@ -6,13 +6,15 @@ primitives, behind one interface, are in :mod:`jaxarm.learning.rule` (interface)
 from jaxarm.learning.babbling import (EXPLORE_PATTERNS, BabblingConfig, BabblingState, babble,
                                       em_noise_rates_in_test, init_babbling, pattern_rates, start_epoch)
 from jaxarm.learning.critic import MIN_ERROR_CHANGE_M, critic_signal, rl_update_due
-from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, Bound, MetaParams, clip_to_bounds, from_unit, stack, to_unit
+from jaxarm.learning.metaparams import (BOUNDS, NAMES, ORIGINAL, RETIRED, Bound, MetaParams, clip_to_bounds, from_unit,
+                                        stack, to_unit, without_retired)
 from jaxarm.learning.stdp import NEVER_SPIKED_MS, NO_TAG_MS, EligibilityConfig, dopamine_update, eligible
 
 __all__ = [
     "EXPLORE_PATTERNS", "BabblingConfig", "BabblingState", "babble", "em_noise_rates_in_test", "init_babbling",
     "pattern_rates", "start_epoch",
     "MIN_ERROR_CHANGE_M", "critic_signal", "rl_update_due",
-    "BOUNDS", "NAMES", "ORIGINAL", "Bound", "MetaParams", "clip_to_bounds", "from_unit", "stack", "to_unit",
+    "BOUNDS", "NAMES", "ORIGINAL", "RETIRED", "Bound", "MetaParams", "clip_to_bounds", "from_unit", "stack", "to_unit",
+    "without_retired",
     "NEVER_SPIKED_MS", "NO_TAG_MS", "EligibilityConfig", "dopamine_update", "eligible",
 ]

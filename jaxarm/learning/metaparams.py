@@ -2,12 +2,17 @@
 metaparameters](../model.md#metaparameters)).
 
 ``MetaParams.original()`` holds the values of the published model (``main.hoc``, marked "optimized" there). Every field
-is a float array so that evolution can ``vmap`` over sets of them; code that needs an integer (``epochs``,
-``explore_tot``) converts it where it is used, the way the original did (``int()``).
+is a float array so that evolution can ``vmap`` over sets of them; code that needs an integer (``explore_tot``)
+converts it where it is used, the way the original did (``int()``).
 
-The authors' evolutionary interface (2016 code, same model) has 21 parameters. We keep the 15 that act on the 2015
-model as the code ran it. Left out, with reasons:
+The authors' evolutionary interface (2016 code, same model) has 21 parameters. We keep the 13 that the network, the
+readout, the critic and the learning rule read. Left out, with reasons:
 
+* p1 ``maxwscaling`` (0.70): the maxw of I->X synapses, which are not plastic in the 2015 model: no effect. Sets saved
+  before it left (presets, results.json) still carry it; :meth:`MetaParams.from_dict` drops it (:data:`RETIRED`).
+* p21 ``epochs`` (12): the training length, a property of the protocol (:class:`jaxarm.task.config.TaskConfig`'s
+  ``epochs``, a preset's ``protocol``), not of the model; old sets carry it, and a preset without a protocol takes
+  its sets' value as the protocol's.
 * p7 ``mineligtrdur`` (30.54 ms): not a variable of INTF6; setting it has no effect ([model:
   learning](../model.md#learning-reward-modulated-stdp)).
 * p8 msarm ``damping``: a parameter of the musculoskeletal arm executable (an arm option, not a learning one).
@@ -36,8 +41,6 @@ class MetaParams:
     """Tuned metaparameters (float arrays; scalars, or with leading batch axes under ``vmap``).
 
     Attributes (original value in brackets):
-        max_w_scaling: maxw of I->X synapses would be 3 x this [0.70]. No effect in the original run (I->X
-            synapses are not plastic) nor here; kept because the authors tuned it, so their sets load unchanged.
         learn_rate: wgain step ``inc`` of every plastic E->E and E->I synapse, dimensionless [0.040].
         plast_ee_maxw: soft upper bound of wgain on E->E synapses, in units of the initial weight [7.85].
         plast_ei_maxw: soft upper bound of wgain on E->I synapses [5.00].
@@ -52,10 +55,8 @@ class MetaParams:
         em_noise_rate_test_hz: AMPA noise rate to all EM cells in the test, Hz [99.01].
         syn_scaling_dt_ms: period of global synaptic scaling in training, ms [5000] (the EA's p18, in s there).
         explore_tot: length of the babbling pattern sequence; patterns 0 .. ceil(explore_tot/2)-1 are drawn [16].
-        epochs: training epochs of 30 s [12] (the EA's p21).
     """
 
-    max_w_scaling: jnp.ndarray
     learn_rate: jnp.ndarray
     plast_ee_maxw: jnp.ndarray
     plast_ei_maxw: jnp.ndarray
@@ -69,7 +70,6 @@ class MetaParams:
     em_noise_rate_test_hz: jnp.ndarray
     syn_scaling_dt_ms: jnp.ndarray
     explore_tot: jnp.ndarray
-    epochs: jnp.ndarray
 
     @classmethod
     def original(cls) -> "MetaParams":
@@ -78,7 +78,9 @@ class MetaParams:
 
     @classmethod
     def from_dict(cls, values: dict) -> "MetaParams":
-        """Build from ``{name: value}``; missing names take the original values; unknown names raise KeyError."""
+        """Build from ``{name: value}``; missing names take the original values; the :data:`RETIRED` names of sets
+        saved before they left are dropped; other unknown names raise KeyError."""
+        values = without_retired(values)
         unknown = set(values) - set(ORIGINAL)
         if unknown:
             raise KeyError(f"unknown metaparameter(s) {sorted(unknown)}; known: {', '.join(ORIGINAL)}")
@@ -93,7 +95,6 @@ class MetaParams:
 
 #: The original values (``main.hoc`` setPlastParams/setArmParams/train/test, [model: equations](../model.md#equations)).
 ORIGINAL: dict[str, float] = {
-    "max_w_scaling": 0.70,
     "learn_rate": 0.040,
     "plast_ee_maxw": 7.85,
     "plast_ei_maxw": 5.00,
@@ -107,11 +108,22 @@ ORIGINAL: dict[str, float] = {
     "em_noise_rate_test_hz": 99.01,
     "syn_scaling_dt_ms": 5000.0,
     "explore_tot": 16.0,
-    "epochs": 12.0,
 }
 
 #: Field order (the order of :func:`to_unit` vectors).
 NAMES: tuple[str, ...] = tuple(ORIGINAL)
+
+#: Names that sets saved by earlier versions carry and that are no longer metaparameters (see the module docstring):
+#: name -> where it went. ``from_dict``, the presets and a resumed run's description drop them.
+RETIRED: dict[str, str] = {
+    "max_w_scaling": "no effect (I->X synapses are not plastic)",
+    "epochs": "the protocol's training length (--epochs, TaskConfig.epochs, a preset's protocol)",
+}
+
+
+def without_retired(values: dict) -> dict:
+    """``values`` without the :data:`RETIRED` names."""
+    return {k: v for k, v in values.items() if k not in RETIRED}
 
 
 class Bound(NamedTuple):
@@ -125,7 +137,6 @@ class Bound(NamedTuple):
 
 #: Search ranges for evolution (ours; see the module docstring). The authors' EA parameter numbers in comments.
 BOUNDS: dict[str, Bound] = {
-    "max_w_scaling": Bound(0.1, 5.0, "log", "1"),                 # p1
     "learn_rate": Bound(0.001, 0.2, "log", "1"),                   # p2
     "plast_ee_maxw": Bound(1.0, 20.0, "log", "x initial weight"),  # p3
     "plast_ei_maxw": Bound(1.0, 20.0, "log", "x initial weight"),  # p4
@@ -139,7 +150,6 @@ BOUNDS: dict[str, Bound] = {
     "em_noise_rate_test_hz": Bound(10.0, 400.0, "linear", "Hz"),   # p20
     "syn_scaling_dt_ms": Bound(1000.0, 30000.0, "log", "ms"),      # p18
     "explore_tot": Bound(2.0, 32.0, "linear", "patterns x 2"),     # p19
-    "epochs": Bound(1.0, 24.0, "linear", "epochs of 30 s"),        # p21
 }
 
 

@@ -146,15 +146,6 @@ def _train_together(groups: list, out: Path, progress: bool, stop_after: int | N
     return results
 
 
-def shared_epochs(sets, what: str) -> int:
-    """The number of epochs all ``sets`` (MetaParams) train for; a one-line error naming ``what`` if they differ."""
-    values = sorted({int(round(float(m.epochs))) for m in sets})
-    if len(values) != 1:
-        raise ConfigError(f"{what}: the sets train for different numbers of epochs ({values}); the sets of one run "
-                          "share a compiled loop, so give --epochs")
-    return values[0]
-
-
 #: What ``jaxarm reproduce --arm ARM`` runs without ``--preset``: the protocol of each arm's headline numbers (README,
 #: "Results beside the paper"). target -> mode -> (preset, epochs or None for the preset's own, {metaparameter: value}).
 DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] = {
@@ -216,10 +207,8 @@ def reproduction_plan(preset, arm: str, targets, epochs, top: int, overrides: di
                 n_epochs = epochs
             elif ep is not None:
                 n_epochs = ep
-            elif p.protocol is not None:       # the preset's published numbers used this length
-                n_epochs = p.protocol["epochs"]
-            else:
-                n_epochs = shared_epochs(sets, f"preset {p.name!r} {'best' if mode == 'seeds' else 'top'}")
+            else:                              # the preset's published numbers used this length
+                n_epochs = p.epochs
             plan[target][mode] = {"preset": p, "sets": sets, "epochs": n_epochs, "set": changes}
     return plan
 

@@ -37,6 +37,7 @@ import numpy as np
 from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.validate import ConfigError
+from jaxarm.learning.metaparams import without_retired
 from jaxarm.paper import presets as preset_lib
 
 RANKING_FILE = "ranking.json"
@@ -47,6 +48,15 @@ DEFAULT_FIRST_SEED = 1000
 
 def _set_key(metaparams: dict) -> tuple:
     return tuple(sorted((k, float(v)) for k, v in metaparams.items()))
+
+
+def _pool_epochs(described: list[dict]) -> int:
+    """The training length the pool's sources share (a preset's protocol, an earlier ranking's); a one-line error
+    when they differ."""
+    values = sorted({d["epochs"] for d in described})
+    if len(values) != 1:
+        raise ConfigError(f"--pool: the sources train for different numbers of epochs ({values}); give --epochs")
+    return values[0]
 
 
 def pool_from(sources: list[str], best: int | None, preset_dir: Path) -> tuple[list[dict], list[dict]]:
@@ -63,7 +73,7 @@ def pool_from(sources: list[str], best: int | None, preset_dir: Path) -> tuple[l
             ranking = json.loads((folder / RANKING_FILE).read_text())
             rows = ranking["sets"][:best] if best is not None else ranking["sets"]
             described.append({"ranking": str(folder), "command": ranking.get("command"), "sets": len(rows),
-                              "pool": ranking.get("pool")})
+                              "pool": ranking.get("pool"), "epochs": ranking["protocol"]["epochs"]})
             found = [(row["metaparams"], row["source"], row["runs"]) for row in rows]
         else:
             try:
@@ -72,11 +82,12 @@ def pool_from(sources: list[str], best: int | None, preset_dir: Path) -> tuple[l
                 raise ConfigError(f"--pool {source!r}: neither a `jaxarm rerank` folder (no {RANKING_FILE}) nor a "
                                   f"preset ({e})") from None
             described.append({"preset": preset.name, "description": preset.description,
-                              "provenance": preset.provenance, "sets": 1 + len(preset.top)})
+                              "provenance": preset.provenance, "sets": 1 + len(preset.top), "epochs": preset.epochs})
             found = [(preset.best, f"{preset.name} best", [])]
             found += [(row["metaparams"], f"{preset.name} top[{i}]", []) for i, row in enumerate(preset.top)]
         for metaparams, where, runs in found:
-            sets.setdefault(_set_key(metaparams), {"metaparams": dict(metaparams), "source": where,
+            metaparams = without_retired(metaparams)   # an earlier ranking's sets may carry them
+            sets.setdefault(_set_key(metaparams), {"metaparams": metaparams, "source": where,
                                                   "earlier": list(runs)})
     if not sets:
         raise ConfigError("--pool: no metaparameter sets found")
@@ -133,7 +144,6 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
     from jaxarm.analysis.reach import distance_metrics
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
-    from jaxarm.paper.reproduce import shared_epochs
     from jaxarm.run import Runner, stack_rows
     from jaxarm.task.config import Target, TaskConfig
 
@@ -154,7 +164,7 @@ def rerank(arm: str, target: str, pool: list[str], out: Path, *, seeds: int = 8,
                           f"the earlier ranking; give --first-seed >= "
                           f"{max(s for st in sets for r in st['earlier'] for s in r['seeds']) + 1}")
     mps = [MetaParams.from_dict(s["metaparams"]) for s in sets]
-    n_epochs = epochs if epochs is not None else shared_epochs(mps, "--pool")
+    n_epochs = epochs if epochs is not None else _pool_epochs(sources)
     config = LoopConfig(arm=arm, backend=backend, task=TaskConfig(target=target, epochs=n_epochs,
                                                                   epoch_duration_s=epoch_s, test_duration_s=test_s))
     out = Path(out)

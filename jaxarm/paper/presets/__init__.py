@@ -9,7 +9,11 @@ A preset is a JSON file ``jaxarm/paper/presets/NAME.json`` (shipped with the pac
   "metaparams"}`` -- the paper's statistic trains one network with each;
 * ``provenance``: the command, search seed, cost (wall time, evaluations, network-seconds) and date that produced
   it;
-* ``protocol`` (optional): ``{"epochs", "why"}``, the training length its published numbers used.
+* ``protocol`` (optional): ``{"epochs", "why"}``, the training length its published numbers used (without one,
+  the paper's 12 epochs).
+
+Sets saved before ``epochs`` and ``max_w_scaling`` left the metaparameters (:data:`~jaxarm.learning.metaparams.RETIRED`)
+load unchanged: ``max_w_scaling`` is dropped, and the sets' ``epochs`` becomes the protocol of a preset that has none.
 
 The presets behind the README's tables sit in this folder; the sets of every other search of the project's history
 (``docs/searches.md``) in ``archive/``, still loadable by name and listed by ``jaxarm reproduce --list-presets
@@ -44,7 +48,7 @@ import numpy as np
 
 from jaxarm.arm.registry import ARMS
 from jaxarm.config.validate import ConfigError
-from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams
+from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams, without_retired
 
 #: Where the package's preset files live (``--make-preset`` writes here by default, so the file can be committed).
 PRESET_DIR = Path(__file__).resolve().parent
@@ -54,6 +58,8 @@ ARCHIVE = "archive"
 ORIGINAL_NAME = "original"
 #: The paper reported its 30 best configurations.
 MAX_TOP = 30
+#: The paper's training length, epochs of 30 s (a preset without a protocol trains for it).
+PAPER_EPOCHS = 12
 _NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.-]{0,63}$")
 
 
@@ -70,7 +76,7 @@ class Preset:
     provenance: dict = field(default_factory=dict)
     targets: tuple[str, ...] | None = None
     #: The protocol of the preset's published numbers, used by `jaxarm reproduce` unless told otherwise:
-    #: ``{"epochs": E, "why": "..."}`` (None: the sets' own ``epochs`` metaparameter).
+    #: ``{"epochs": E, "why": "..."}`` (None: the paper's 12 epochs).
     protocol: dict | None = None
 
     def __post_init__(self):
@@ -83,6 +89,8 @@ class Preset:
             raise ConfigError(f"preset {self.name!r} arms = {list(arms)!r}: must be a non-empty list of "
                               f"{', '.join(map(repr, ARMS))}")
         object.__setattr__(self, "arms", arms)
+        if self.protocol is None:
+            object.__setattr__(self, "protocol", _protocol_of_old_sets(self.name, self.best, self.top))
         object.__setattr__(self, "best", check_metaparams(self.best, f"preset {self.name!r} best"))
         top = tuple(self.top or ())
         if len(top) > MAX_TOP:
@@ -103,6 +111,11 @@ class Preset:
                                   '{"epochs": an integer in [1, 1000], "why": "..."}')
 
     # ------------------------------------------------------------------ use
+    @property
+    def epochs(self) -> int:
+        """The training length of the preset's published numbers: its protocol's, else the paper's."""
+        return self.protocol["epochs"] if self.protocol is not None else PAPER_EPOCHS
+
     def best_metaparams(self) -> MetaParams:
         return MetaParams.from_dict(self.best)
 
@@ -135,11 +148,26 @@ class Preset:
                    protocol=d.get("protocol"))
 
 
+def _protocol_of_old_sets(name: str, best, top) -> dict | None:
+    """The protocol that sets saved with an ``epochs`` metaparameter imply (None when they carry none)."""
+    sets = [best] + [row.get("metaparams") for row in top or () if isinstance(row, dict)]
+    values = sorted({v["epochs"] for v in sets if isinstance(v, dict) and "epochs" in v}, key=str)
+    if not values:
+        return None
+    if len(values) > 1 or isinstance(values[0], bool) or not isinstance(values[0], (int, float)) \
+            or values[0] != round(values[0]) or not 1 <= values[0] <= 1000:
+        raise ConfigError(f"preset {name!r}: its sets' epochs {values} must be one whole number in [1, 1000] (the "
+                          'training length); give the preset a protocol {"epochs": E, "why": "..."}')
+    return {"epochs": int(values[0]), "why": "the training length stored with its sets"}
+
+
 def check_metaparams(values, where: str) -> dict:
     """A complete ``{field: float}`` set inside :data:`BOUNDS` (compared in float32, the type the model uses), or
-    :class:`ConfigError` naming the field and its range."""
+    :class:`ConfigError` naming the field and its range. The :data:`~jaxarm.learning.metaparams.RETIRED` names of
+    older sets are dropped."""
     if not isinstance(values, dict):
         raise ConfigError(f"{where}: must be an object {{field: value}} with every metaparameter ({', '.join(NAMES)})")
+    values = without_retired(values)
     unknown = [k for k in values if k not in NAMES]
     if unknown:
         raise ConfigError(f"{where}: unknown metaparameter {unknown[0]!r}; known: {', '.join(NAMES)}")
@@ -164,6 +192,7 @@ def original() -> Preset:
         name=ORIGINAL_NAME,
         description="the authors' metaparameters (main.hoc, marked 'optimized'); no top-30 list is available",
         arms=("musculoskeletal", "simple"), best=dict(ORIGINAL), top=(),
+        protocol={"epochs": PAPER_EPOCHS, "why": "the paper's 12 epochs of 30 s"},
         provenance={"source": "the authors' values from main.hoc (jaxarm.learning.metaparams.ORIGINAL)",
                     "command": None, "seed": None, "cost": None, "date": None})
 
@@ -337,6 +366,8 @@ def from_search(search_dir: str | Path, name: str, description: str | None = Non
                        f"{', ' + ','.join(fit['targets']) if fit.get('targets') else ''}) on the {'/'.join(arms)} arm")
         if targets != fit.get("targets"):
             description += f", its top {len(rows)} re-ranked for {','.join(targets)}"
+    epochs = fit.get("epochs")     # searches from before the fitness recorded it: the sets' own (protocol routing)
+    protocol = None if epochs is None else {"epochs": int(epochs), "why": f"the search trained {epochs} epochs"}
     return Preset(name=name, description=description, arms=arms,
                   best=rows[0]["metaparams"], top=tuple(top), provenance=provenance,
-                  targets=tuple(targets) if targets else None)
+                  targets=tuple(targets) if targets else None, protocol=protocol)
