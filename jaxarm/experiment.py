@@ -321,11 +321,17 @@ def said(run, res) -> str:
             f"{np.median([n['min_distance_m'] for n in res['networks']]) * 100:.1f} cm -> {run.out / 'results.json'}")
 
 
-def _task_outputs(name: str):
+def said_test(run, res) -> str:
+    """The line ``jaxarm test`` prints for a reaching run's re-test."""
+    return f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}"
+
+
+def _task_outputs(name: str, test: bool = False):
     """(write the results, the line that says them) of the task registered as ``name``: its outputs module's
-    ``write_outputs`` and ``said`` (reaching's: this module's)."""
+    ``write_outputs`` and ``said`` (reaching's: this module's); with ``test``, ``said_test`` where the module has one
+    (the line ``jaxarm test`` prints)."""
     module = importlib.import_module(TASKS[name].outputs)
-    return module.write_outputs, module.said
+    return module.write_outputs, (getattr(module, "said_test", module.said) if test else module.said)
 
 
 def _train_targets(ap, args, configs, mp, record) -> int:
@@ -453,18 +459,17 @@ def test_main(argv: list[str] | None = None) -> int:
     if meta["epochs"] != ckpt.latest_step():
         raise SystemExit(f"{args.src} finished {ckpt.latest_step()} of {meta['epochs']} epochs: rerun `jaxarm train` "
                          "with the same options to finish it first")
-    task, task_name = None, TASK_DEFAULT
-    if "task" in meta:   # a task of its own (jaxarm train --task centre-out-8): rebuilt from its identity
-        found = by_identity(meta["task"].get("name"))
-        if found is None:
-            ap.error(f"--from {args.src}: a run of task {meta['task'].get('name')!r}, which this version does not "
-                     f"register (tasks: {', '.join(TASKS)}); test it with the version that trained it")
-        task_name, entry = found
-        task = entry.Config.from_identity(meta["task"], test_duration_s=args.test_s or 1.0)
-        tc = task.task_config()
-    else:
-        tc = TaskConfig(target=meta["target"], epochs=meta["epochs"], epoch_duration_s=meta["epoch_s"],
-                        test_duration_s=args.test_s or 1.0, test_em_noise_events=args.test_em_noise_events)
+    # the task rebuilt from what the run recorded: a task of its own records its identity under "task"
+    # (jaxarm train --task centre-out-8); reaching's identity is the description itself (target, epochs, epoch_s)
+    identity = meta.get("task")
+    found = by_identity(identity.get("name") if identity else None)
+    if found is None:
+        ap.error(f"--from {args.src}: a run of task {identity.get('name')!r}, which this version does not "
+                 f"register (tasks: {', '.join(TASKS)}); test it with the version that trained it")
+    task_name, entry = found
+    task = entry.Config.from_identity(identity or meta, test_duration_s=args.test_s or 1.0,
+                                      test_em_noise_events=args.test_em_noise_events)
+    tc = task.task_config()
     # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
     network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
                              | ({"crossing": args.crossing} if args.crossing else {}))
@@ -476,18 +481,15 @@ def test_main(argv: list[str] | None = None) -> int:
         return _test_into(ap, args, meta, cfg, out, record, overrides, task, task_name)
 
 
-def _test_into(ap, args, meta, cfg, out, record, overrides, task=None, task_name=TASK_DEFAULT) -> int:
+def _test_into(ap, args, meta, cfg, out, record, overrides, task, task_name) -> int:
     try:
-        if task is not None:
-            run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]), task=task,
-                      record=record)
-        elif isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
+        if isinstance(meta["metaparams"], list):   # a SetsRun folder (e.g. `jaxarm reproduce`'s top30/)
             from jaxarm.run import stack_rows
 
             run = SetsRun(cfg, meta["seed"], out, stack_rows([MetaParams.from_dict(m) for m in meta["metaparams"]]),
                           record=record)
         else:
-            run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]),
+            run = Run(cfg, meta["networks"], meta["seed"], out, MetaParams.from_dict(meta["metaparams"]), task=task,
                       record=record)
     except ConfigError as e:
         ap.error(str(e))
@@ -497,9 +499,8 @@ def _test_into(ap, args, meta, cfg, out, record, overrides, task=None, task_name
     trained, naive = carry.trained, run.naive()
     if args.fresh_noise is not None:
         trained, naive = (fresh_noise(t, args.fresh_noise) for t in (trained, naive))
-    write, say = _task_outputs(task_name)
+    write, say = _task_outputs(task_name, test=True)
     res = write(run, run.test(trained), run.test(naive, "naive test"), history, 0.0, 0)
     if parallel.is_main_process():
-        print(say(run, res) if task is not None else
-              f"{res['success_count']}/{run.n} networks reached the target -> {run.out / 'results.json'}")
+        print(say(run, res))
     return 0

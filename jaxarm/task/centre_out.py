@@ -98,8 +98,10 @@ class CentreOut:
                                      test_duration_s=test_duration_s))]
 
     @classmethod
-    def from_identity(cls, identity: dict, test_duration_s: float) -> "CentreOut":
-        """The task a run recorded (:meth:`identity`), tested for ``test_duration_s``."""
+    def from_identity(cls, identity: dict, test_duration_s: float,
+                      test_em_noise_events: str = "unlimited") -> "CentreOut":
+        """The task a run recorded (:meth:`identity`), tested for ``test_duration_s`` (the test noise option, as in
+        :meth:`from_options`, does not apply)."""
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in identity.items() if k != "name"},
                    test_duration_s=test_duration_s)
 

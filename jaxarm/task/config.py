@@ -141,13 +141,20 @@ class TaskConfig:
         """The reaching task as a run records it (``jaxarm train``'s description: target, epochs, epoch_s)."""
         return {"target": self.target, "epochs": self.epochs, "epoch_s": self.epoch_duration_s}
 
-    # -- built from a command's options ----------------------------------------------------------------------------
+    # -- built from a command's options, or again from a run's description ------------------------------------------
     @classmethod
     def from_options(cls, *, targets, epochs: int, epoch_duration_s: float, test_duration_s: float,
                      test_em_noise_events: str) -> list[tuple[str, "TaskConfig"]]:
         """``jaxarm train``'s runs of this task: (name, task), one per target."""
         return [(t, cls(target=t, epochs=epochs, epoch_duration_s=epoch_duration_s, test_duration_s=test_duration_s,
                         test_em_noise_events=test_em_noise_events)) for t in targets]
+
+    @classmethod
+    def from_identity(cls, identity: dict, test_duration_s: float,
+                      test_em_noise_events: str = "unlimited") -> "TaskConfig":
+        """The task a run recorded (:meth:`identity`), tested for ``test_duration_s`` with that test noise."""
+        return cls(target=identity["target"], epochs=identity["epochs"], epoch_duration_s=identity["epoch_s"],
+                   test_duration_s=test_duration_s, test_em_noise_events=test_em_noise_events)
 
     def prepare_spec(self, spec):
         """The network spec this task trains (reaching needs nothing added)."""

@@ -16,7 +16,7 @@
 
 For the command line (:data:`jaxarm.task.registry.TASKS`), a registered task's class also has ``from_options``
 (its runs from ``jaxarm train``'s options), ``prepare_spec(spec)`` (what it adds to the network: centre-out's target
-code) and, for a task that records its own identity, ``from_identity`` (``jaxarm test --from``).
+code) and ``from_identity`` (``jaxarm test --from``: the task again from the identity a run recorded).
 
 Reaching's ``epoch`` and ``test`` return the functions they are given, so its compiled programs are those of a run
 that knows no task interface.

@@ -17,7 +17,8 @@ class Task(NamedTuple):
     summary: str                # one line for ``--help`` and the docs
     targets: tuple[str, ...]    # the targets it reaches unless told otherwise (names of TARGET_ANGLES_RAD)
     fitness: str                # the registered fitness that scores it in a search (jaxarm.evolve.fitness)
-    outputs: str                # the module whose write_outputs(run, ...) and said(run, results) the commands call
+    outputs: str                # the module whose write_outputs(run, ...) and said(run, results) (and, for jaxarm
+                                # test, said_test where it has one) the commands call
     identity: str | None = None  # the name its runs record in their description (None: reaching's description)
 
 
