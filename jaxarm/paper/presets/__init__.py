@@ -192,7 +192,6 @@ def original() -> Preset:
         name=ORIGINAL_NAME,
         description="the authors' metaparameters (main.hoc, marked 'optimized'); no top-30 list is available",
         arms=("musculoskeletal", "simple"), best=dict(ORIGINAL), top=(),
-        protocol={"epochs": PAPER_EPOCHS, "why": "the paper's 12 epochs of 30 s"},
         provenance={"source": "the authors' values from main.hoc (jaxarm.learning.metaparams.ORIGINAL)",
                     "command": None, "seed": None, "cost": None, "date": None})
 
