@@ -215,6 +215,7 @@ def test_the_centre_out_fitness_is_the_mean_shortfall_of_one_trained_network():
 
     targets = ("right", "top", "left", "bottom")
     f = fitness.build("centre-out", fitness.FitnessOptions(arm="simple", targets=targets, train_s=0.8))
+    assert f.epochs == 1   # per target, as `jaxarm train --task centre-out-8 --epochs` counts them
     mp = MetaParams.original()
     key = jax.random.PRNGKey(5)
     value, metrics = jax.jit(f.fn)(key, mp)

@@ -101,9 +101,9 @@ class Fitness(NamedTuple):
     line multiplies it by evaluations per second.
     ``ignores``: metaparameters ``fn`` does not read (e.g. a noise rate a rule without babbling never uses);
     ``jaxarm evolve`` freezes them at the published value rather than search directions that cannot matter.
-    ``epochs``: the training epochs one evaluation runs (None for a benchmark that trains nothing); the search
-    records it, and a preset made from the search takes it as its protocol, so the found sets say how they were
-    evaluated.
+    ``epochs``: the training epochs one evaluation runs, counted as the task's ``--epochs`` counts them (reaching:
+    epochs; centre-out: epochs per target), or None for a benchmark that trains nothing; the search records it, and
+    a preset made from the search takes it as its protocol, so the found sets say how they were evaluated.
     """
 
     fn: Callable

@@ -155,7 +155,7 @@ def make_centre_out(options: fitness.FitnessOptions, margin_m: float = 0.02) -> 
     cfg = task.task_config()
     return fitness.Fitness(fn, network_seconds_per_eval=cfg.epochs * cfg.epoch_duration_s
                            + len(task.targets) * cfg.test_duration_s,
-                           epochs=cfg.epochs)
+                           epochs=task.epochs_per_target)   # as this task's --epochs counts them: per target
 
 
 fitness.register("reaching", make_reaching, "worst target's test hand-target distance, m (the authors' fitness)")
