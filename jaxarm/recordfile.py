@@ -183,11 +183,10 @@ def write_run_records(run, trained_res, naive_res) -> dict:
     group[pops.slice(net.spec.readout)] = pops.em_groups()
     group[pops.slice(net.spec.proprio)] = pops.p_groups()
     target_group = None
-    if net.spec.target_codes:   # cell k of a target code fires for direction k % groups (jaxarm.network.proprio)
+    if net.spec.target_codes:
         target_group = np.full(net.n_all, -1, np.int8)
         for name in net.spec.target_codes:
-            size, groups = pops.stop[name] - pops.start[name], net.spec.population(name).groups
-            target_group[pops.slice(name)] = np.arange(size) % groups
+            target_group[pops.slice(name)] = pops.target_groups(name)
     networks = run.recorded_networks()
     earlier = earlier_windows(run.out / SPIKES_FILE, windows, seeds=run.seeds, networks=networks)
     save_spikes(run.out / SPIKES_FILE, windows, seeds=run.seeds, networks=networks, dt_ms=net.dt_ms,

@@ -57,6 +57,11 @@ class Populations:
         """(n_P,) muscle group of each P cell: index % 4."""
         return np.arange(self.config.n_p) % N_GROUPS
 
+    def target_groups(self, name: str) -> np.ndarray:
+        """(size,) direction group of each cell of the target code ``name``: index % its ``groups``."""
+        pop = self.config.spec.population(name)
+        return np.arange(pop.size) % pop.groups
+
     def p_tuning_index(self) -> np.ndarray:
         """(n_P,) position of each P cell along its group's length axis: index // 4 (the original), or with
         ``NetworkConfig.p_positions``, (index // 4) * p_positions // (n_P / 4)."""

@@ -118,7 +118,7 @@ def set_target(config: NetworkConfig, p: PState, direction_rad, step) -> PState:
     for name in config.spec.target_codes:
         pop = config.spec.population(name)
         cells = slice(pops.start[name] - config.n_cells, pops.stop[name] - config.n_cells)
-        group = jnp.asarray(np.arange(pop.size) % pop.groups)
+        group = jnp.asarray(pops.target_groups(name))
         on = group == target_group(config, name, direction_rad)
         interval = jnp.where(on, max(1, config.steps(1000.0 / pop.rate_hz)), NEVER_STEPS).astype(jnp.int32)
         p = _retime(p, interval, step, cells)
