@@ -292,7 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help=f"network j of every set uses PRNGKey(first_seed + j) (default {DEFAULT_FIRST_SEED}, apart "
                          "from the reproduction's seeds)")
     ap.add_argument("--epochs", type=int, default=None,
-                    help="training epochs (default: the sets' shared `epochs` metaparameter)")
+                    help="training epochs (default: the protocol epochs the pool's sources share)")
     ap.add_argument("--rank-by", choices=RANK_BY, default="reach",
                     help="sets of equal success rate ordered by the mean closest approach (reach, default) or by the "
                          "mean distance after entry, the paper's measure of staying (stay)")
