@@ -31,24 +31,6 @@ PAPER = {"left": {"distance_after_cm": 3.87, "sd": 0.78, "reached": 29 / 30},
          "bottom": {"distance_after_cm": 3.20, "sd": 0.69, "reached": 26 / 30}}
 
 
-def intraclass_correlation(groups) -> float | None:
-    """ICC(1) of one-way ANOVA over ``groups`` (arrays of one measure, one array per set; groups of fewer than one
-    value dropped): (MSB - MSW) / (MSB + (k0 - 1) MSW), k0 the ANOVA's average group size for unequal groups. None
-    with fewer than two groups or no within-group spread."""
-    groups = [np.asarray(g, float) for g in groups if len(g) >= 1]
-    n_total, a = sum(len(g) for g in groups), len(groups)
-    if a < 2 or n_total <= a:
-        return None
-    grand = np.concatenate(groups).mean()
-    ssb = sum(len(g) * (g.mean() - grand) ** 2 for g in groups)
-    ssw = sum(((g - g.mean()) ** 2).sum() for g in groups)
-    msb, msw = ssb / (a - 1), ssw / (n_total - a)
-    k0 = (n_total - sum(len(g) ** 2 for g in groups) / n_total) / (a - 1)
-    if msw == 0:
-        return None
-    return float((msb - msw) / (msb + (k0 - 1) * msw))
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", default="msarm-cmaes-2cm-rerank")
@@ -69,6 +51,7 @@ def main(argv=None) -> int:
     import jax
 
     from jaxarm.analysis.reach import reach_metrics
+    from jaxarm.analysis.stats import intraclass_correlation, set_mean_reliability
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.paper import presets
@@ -121,7 +104,7 @@ def main(argv=None) -> int:
           f"(paper {paper['distance_after_cm']} cm, bound {1.25 * paper['distance_after_cm']:.2f} cm)")
     groups = [100 * m["distance_after_m"][i][m["success"][i]] for i in range(len(sets))]
     icc = intraclass_correlation([g[np.isfinite(g)] for g in groups])
-    reliability = None if icc is None else {k: round(k * icc / (1 + (k - 1) * icc), 3) for k in (1, 3, 4, 8, 16, 32)}
+    reliability = None if icc is None else {k: round(set_mean_reliability(icc, k), 3) for k in (1, 3, 4, 8, 16, 32)}
     if icc is not None:
         print(f"distance after entry: intraclass correlation (sets) {icc:.3f}; reliability of a set's mean over k "
               f"networks: " + ", ".join(f"k={k}: {r:.2f}" for k, r in reliability.items()))

@@ -243,6 +243,72 @@ def test_mean_sd_ignores_nan_and_masked_entries():
     assert math.isnan(empty["mean"]) and empty["n"] == 0
 
 
+def test_intraclass_correlation_by_hand_and_on_a_known_random_effects_model():
+    from jaxarm.analysis.stats import intraclass_correlation, set_mean_reliability, shrunk_means
+
+    # by hand: groups {1, 3}, {5, 7}: grand 4, SSB = 2*(2-4)^2 + 2*(6-4)^2 = 16 (MSB 16), SSW = 4 * 1 = 4 over 2
+    # df (MSW 2), k0 = 2: ICC = (16 - 2) / (16 + 2) = 7/9
+    assert intraclass_correlation([[1.0, 3.0], [5.0, 7.0]]) == pytest.approx(7 / 9)
+    assert intraclass_correlation([[1.0, 2.0]]) is None and intraclass_correlation([[1.0], [2.0]]) is None
+    # a random-effects model with a known ICC: group effects of SD 1, members' noise of SD 1.5 -> 1 / 3.25;
+    # unequal group sizes (4-12 members)
+    rng = np.random.default_rng(0)
+    effects = rng.normal(0.0, 1.0, 3000)
+    groups = [b + rng.normal(0.0, 1.5, rng.integers(4, 13)) for b in effects]
+    icc = intraclass_correlation(groups)
+    assert icc == pytest.approx(1 / 3.25, abs=0.02)
+    # Spearman-Brown is the squared correlation of a group's mean with its true effect
+    eight = np.array([b + rng.normal(0.0, 1.5, 8).mean() for b in effects])
+    assert np.corrcoef(eight, effects)[0, 1] ** 2 == pytest.approx(float(set_mean_reliability(1 / 3.25, 8)),
+                                                                   abs=0.03)
+    # shrinkage predicts the true effect better than the raw mean, and without the winner's curse: over the groups
+    # with the 10 % largest means the shrunk mean is on average the true effect
+    shrunk, raw = shrunk_means(groups, icc), np.array([g.mean() for g in groups])
+    assert np.mean((shrunk - effects) ** 2) < 0.8 * np.mean((raw - effects) ** 2)
+    top = raw > np.quantile(raw, 0.9)
+    assert abs(np.mean(shrunk[top] - effects[top])) < 0.1 < np.mean(raw[top] - effects[top])
+
+
+def test_stay_frontier_selections_on_a_ranking_by_hand(tmp_path):
+    # experiments/stay_frontier.py on a ranking of 40 sets x 4 seeds with known rates and distances: at lam = 0 the
+    # 30 sets that stay closest, at a large lam the ranking's own 30 best (rate first); a selection's expected count
+    # is the sum of its rates and its distance the rate-weighted mean; a fixed metaparameter is skipped.
+    import importlib.util
+    from pathlib import Path
+
+    from jaxarm.paper.rerank import rank
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "stay_frontier.py"
+    spec = importlib.util.spec_from_file_location("stay_frontier", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    sets = []
+    for i in range(40):
+        hits = 4 if i % 2 else 2                       # odd sets reach on every seed, even ones on half
+        after_cm = 2.0 + 0.1 * i + (0.0 if i % 2 else -1.5)
+        spread = [-0.2, 0.2, -0.1, 0.1]
+        sets.append({"source": f"p top[{i}]", "metaparams": {"a": float(i), "fixed": 1.0},
+                     "runs": [{"seeds": [0, 1, 2, 3], "success": [k < hits for k in range(4)],
+                               "min_distance_m": [0.01] * 4,
+                               "distance_after_m": [(after_cm + spread[k]) / 100 if k < hits else None
+                                                    for k in range(4)]}]})
+    result = mod.frontier({"sets": rank(sets, "stay")}, top=30)
+    by_lam = {c["lambda_cm"]: c["raw"] for c in result["frontier"]}
+    closest = sorted(range(40), key=lambda i: 2.0 + 0.1 * i + (0.0 if i % 2 else -1.5))[:30]
+    rate = lambda i: 1.0 if i % 2 else 0.5   # noqa: E731
+    dist = lambda i: 2.0 + 0.1 * i + (0.0 if i % 2 else -1.5)   # noqa: E731
+    assert by_lam[0.0]["count"] == pytest.approx(sum(rate(i) for i in closest))
+    assert by_lam[0.0]["distance_after_cm"] == pytest.approx(
+        sum(rate(i) * dist(i) for i in closest) / sum(rate(i) for i in closest), abs=1e-3)
+    # the ranking's 30: the 20 sets that always reach, then the 10 half-reaching ones that stay closest
+    top = list(range(1, 40, 2)) + list(range(0, 20, 2))
+    assert result["ranking_top"]["raw"]["count"] == pytest.approx(sum(rate(i) for i in top)) == 25.0
+    assert by_lam[1000]["count"] == 25.0
+    assert by_lam[0.0]["distance_after_cm"] < by_lam[1000]["distance_after_cm"]
+    assert list(result["metaparameter_correlations"]) == ["a"]
+    assert result["reliability_of_a_set_mean"]["seeds"] == 4
+
+
 # ------------------------------------------------------------------------------ jaxarm.paper.comparison
 def _fake_run(folder, arm, target, hands, naive_hands, successes):
     """A run folder as `jaxarm train` writes it, with only what reach_stats reads."""
