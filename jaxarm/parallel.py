@@ -21,9 +21,9 @@ Set-up, once per process and before JAX computes anything (:func:`start`; the co
 
 Each device runs its share in groups of :func:`networks_at_once` networks (8 on CPUs), one group after the other, and
 a batch is padded to whole groups on every device (:func:`padded_size`): the extra members are computed and dropped
-by the caller, never counted. Every network is then computed by the same program whatever the layout. (The same
-network at another place within its group has been seen to round differently in the last bit, places 0 and 4 after
-minutes of training; the operation is not yet found: docs/scaling.md, "Known limit".)
+by the caller, never counted. Every network is then computed by the same program whatever the layout, and with XLA's
+fused multiply-add off (:mod:`jaxarm.cpu_arithmetic`) to the same bits at any place in its group (docs/scaling.md,
+"A network in another batch").
 """
 from __future__ import annotations
 
@@ -371,7 +371,7 @@ def sharded_map(fn: Callable, m: Mesh | None = None, at_once: int | None = None)
     is given (else on the default device), each device's share in groups of ``at_once`` networks (default
     :func:`networks_at_once`; 0: one ``vmap``). Rows are padded to whole groups on every device (with copies of the
     last row) and the padding dropped from the result, so a row's result is the same bits whatever the batch size
-    and layout (at the same place in its group: docs/scaling.md, "Known limit"). The result is whole (replicated)
+    and layout (docs/scaling.md, "A network in another batch"). The result is whole (replicated)
     on every device of ``m``."""
     at_once = networks_at_once() if at_once is None else at_once
     local = map_networks(fn, at_once)

@@ -124,7 +124,7 @@ def test_bad_input_is_one_clear_line(tmp_path, capsys):
         preset_from_ranking(tmp_path, "x")
 
 
-@pytest.mark.slow   # the paper's full protocol: 12 epochs of 30 s, 6 networks ranked and 3 trained alone (~2 min)
+@pytest.mark.slow   # the paper's full protocol: 12 epochs of 30 s, 4 networks ranked and 2 trained alone (~70 s)
 def test_a_ranking_at_full_length_equals_training_each_set_alone(preset_dir, tmp_path):
     """At the paper's length too (12 epochs of 30 s, 1 s test), a set's networks in a ranking's batch, where they
     sit at other places of their group than when trained alone, end exactly as when each set trains alone: since
@@ -133,16 +133,16 @@ def test_a_ranking_at_full_length_equals_training_each_set_alone(preset_dir, tmp
     full = ["--arm", "simple", "--target", "left", "--epochs", "12", "--epoch-s", "30", "--test-s", "1",
             "--no-progress"]
     out = tmp_path / "ranking"
-    assert main(["rerank", *full, "--pool", "two", "--preset-dir", str(preset_dir), "--seeds", "3",
+    assert main(["rerank", *full, "--pool", "two", "--preset-dir", str(preset_dir), "--seeds", "2",
                  "--first-seed", "700", "--out", str(out)]) == 0
     by_source = {r["source"]: r for r in json.loads((out / RANKING_FILE).read_text())["sets"]}
-    for source, mp in (("two top[1]", OTHER),):   # the second set: places 3-5 of the ranking's group, 0-2 alone
+    for source, mp in (("two top[1]", OTHER),):   # the second set: places 2-3 of the ranking's group, 0-1 alone
         alone = tmp_path / source.replace(" ", "_")
         sets = sum((["--set", f"{k}={v}"] for k, v in mp.items() if k != "epochs"), [])
-        assert main(["train", *full, "--networks", "3", "--seed", "700", "--out", str(alone), *sets]) == 0
+        assert main(["train", *full, "--networks", "2", "--seed", "700", "--out", str(alone), *sets]) == 0
         nets = json.loads((alone / "results.json").read_text())["networks"]
         (run,) = by_source[source]["runs"]
-        assert run["seeds"] == [700, 701, 702]
+        assert run["seeds"] == [700, 701]
         assert run["min_distance_m"] == [n["min_distance_m"] for n in nets]
         assert run["success"] == [n["success"] for n in nets]
         assert run["distance_after_m"] == [n["distance_after_m"] for n in nets]
