@@ -64,11 +64,11 @@ def frontier(table: dict, top: int = 30) -> dict:
         order = np.argsort(np.where(usable, score, np.inf), kind="stable")
         return order[:top]
 
-    curve = []
+    curve = {}                     # lam (cm per unit rate, as text) -> the selection's measured and forecast point
     for lam in LAMBDAS_CM:
         raw_pick, shrunk_pick = pick(raw_after - lam * rate), pick(shrunk_after - lam * shrunk_rate)
-        curve.append({"lambda_cm": lam, "raw": selection(rate, raw_after, raw_pick),
-                      "shrunk": selection(shrunk_rate, shrunk_after, shrunk_pick)})
+        curve[f"{lam:g}"] = {"raw": selection(rate, raw_after, raw_pick),
+                             "shrunk": selection(shrunk_rate, shrunk_after, shrunk_pick)}
     ranked = np.arange(top)        # the ranking's own order: rate first, then distance after entry
     names = sorted(sets[0]["metaparams"])
     correlations = {}
@@ -119,8 +119,8 @@ def plot(result: dict, paper: dict, target: str, figure: Path) -> None:
                if s["source"].split(" ")[0] == src and s["distance_after_cm"] is not None]
         ax.plot(*zip(*pts), ".", color=f"C{k + 2}", alpha=0.5, label=f"one set, 30 x its rate ({src})")
     for kind, style in (("raw", "--"), ("shrunk", "-")):
-        xs = [c[kind]["count"] for c in result["frontier"]]
-        ys = [c[kind]["distance_after_cm"] for c in result["frontier"]]
+        xs = [c[kind]["count"] for c in result["frontier"].values()]
+        ys = [c[kind]["distance_after_cm"] for c in result["frontier"].values()]
         ax.plot(xs, ys, style, color="tab:blue", marker="o", ms=3,
                 label=f"30-set selections, {'measured' if kind == 'raw' else 'forecast for fresh seeds'}")
     top = result["ranking_top"]["shrunk"]
@@ -169,8 +169,8 @@ def main(argv=None) -> int:
           f"intraclass correlation {result['icc']['distance_after']:.2f} (distance after entry), "
           f"{result['icc']['success']:.2f} (success)")
     print("lambda (cm)  measured count, distance (cm)  forecast count, distance (cm)")
-    for c in result["frontier"]:
-        print(f"{c['lambda_cm']:>11g}  {c['raw']['count']:>14.1f}  {c['raw']['distance_after_cm']:>13.2f}  "
+    for lam, c in result["frontier"].items():
+        print(f"{lam:>11}  {c['raw']['count']:>14.1f}  {c['raw']['distance_after_cm']:>13.2f}  "
               f"{c['shrunk']['count']:>14.1f}  {c['shrunk']['distance_after_cm']:>13.2f}")
     t = result["ranking_top"]
     print(f"the ranking's 30 best: measured {t['raw']['count']:.1f} at {t['raw']['distance_after_cm']:.2f} cm, "

@@ -293,7 +293,7 @@ def test_stay_frontier_selections_on_a_ranking_by_hand(tmp_path):
                                "distance_after_m": [(after_cm + spread[k]) / 100 if k < hits else None
                                                     for k in range(4)]}]})
     result = mod.frontier({"sets": rank(sets, "stay")}, top=30)
-    by_lam = {c["lambda_cm"]: c["raw"] for c in result["frontier"]}
+    by_lam = {float(lam): c["raw"] for lam, c in result["frontier"].items()}
     closest = sorted(range(40), key=lambda i: 2.0 + 0.1 * i + (0.0 if i % 2 else -1.5))[:30]
     rate = lambda i: 1.0 if i % 2 else 0.5   # noqa: E731
     dist = lambda i: 2.0 + 0.1 * i + (0.0 if i % 2 else -1.5)   # noqa: E731
