@@ -43,6 +43,8 @@ def main(argv=None) -> int:
     ap.add_argument("--epoch-s", type=float, default=30.0)
     ap.add_argument("--out", type=Path, default=Path("runs/stay-tradeoff"))
     ap.add_argument("--figure", type=Path, default=None, help="the PNG (default OUT/stay_tradeoff.png)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="give every set this metaparameter value (repeatable): the same sets with one change")
     args = ap.parse_args(argv)
 
     from jaxarm import parallel
@@ -52,14 +54,20 @@ def main(argv=None) -> int:
 
     from jaxarm.analysis.reach import reach_metrics
     from jaxarm.analysis.stats import intraclass_correlation, set_mean_reliability
-    from jaxarm.learning.metaparams import MetaParams
+    from jaxarm.learning.metaparams import NAMES, MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.paper import presets
     from jaxarm.run import Batch, stack_rows
     from jaxarm.task.config import Target, TaskConfig
 
     preset = presets.load(args.preset)
-    sets = [MetaParams.from_dict(row["metaparams"]) for row in preset.top[: args.sets]]
+    overrides = {}
+    for item in args.set:
+        name, _, value = item.partition("=")
+        if name not in NAMES:
+            raise SystemExit(f"--set {item}: {name!r} is not a metaparameter; known: {', '.join(NAMES)}")
+        overrides[name] = float(value)
+    sets = [MetaParams.from_dict({**row["metaparams"], **overrides}) for row in preset.top[: args.sets]]
     if len(sets) < args.sets:
         raise SystemExit(f"--sets {args.sets}: the preset has {len(sets)} top sets")
     task = TaskConfig(target=args.target, epochs=args.epochs, epoch_duration_s=args.epoch_s)
@@ -69,7 +77,7 @@ def main(argv=None) -> int:
     targets = Target.stack([task.target] * len(seeds))
     batch = Batch(config, seeds, mps, targets, args.out,
                   {"experiment": "stay_tradeoff", "preset": args.preset, "sets": args.sets, "seeds": args.seeds,
-                   "target": args.target, "epochs": args.epochs, "epoch_s": args.epoch_s,
+                   "target": args.target, "epochs": args.epochs, "epoch_s": args.epoch_s, "set": overrides,
                    "label": f"{args.sets} sets x {args.seeds} networks"})
     t0 = time.perf_counter()
     carry, *_ = batch.train()

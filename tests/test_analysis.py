@@ -309,6 +309,32 @@ def test_stay_frontier_selections_on_a_ranking_by_hand(tmp_path):
     assert result["reliability_of_a_set_mean"]["seeds"] == 4
 
 
+def test_paired_sets_compares_set_by_set_and_refuses_other_protocols(tmp_path):
+    # experiments/paired_sets.py: six sets all closer after the change -> the exact two-sided signed-rank p is
+    # 2 / 2^6; a set that entered in only one run is left out of the pairs; runs on other seeds are refused.
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "paired_sets.py"
+    spec = importlib.util.spec_from_file_location("paired_sets", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    config = {"preset": "p", "arm": "musculoskeletal", "target": "left", "sets": 7, "seeds": 4, "first_seed": 4000,
+              "epochs": 12, "epoch_s": 30.0}
+    base_d = [5.0, 6.0, 4.5, 7.0, 5.5, 6.5, None]
+    low_d = [4.0, 4.9, 3.2, 5.4, 3.5, 5.0, 3.0]
+    run = lambda ds, extra: {"config": {**config, **extra}, "pooled_distance_after_cm": 1.0,   # noqa: E731
+                             "rows": [{"set": i, "reached": 0 if d is None else 4, "networks": 4,
+                                       "distance_after_cm": d} for i, d in enumerate(ds)]}
+    out = mod.compare(run(base_d, {}), run(low_d, {"set": ["plast_ee_maxw=2.3"]}))
+    assert out["sets_compared"] == 6 and out["sets_closer"] == 6
+    assert out["wilcoxon_p"] == pytest.approx(2 / 2 ** 6, rel=2e-3)   # stored to 3 significant digits
+    assert out["base"]["reached"] == 24 and out["changed"]["reached"] == 28
+    assert out["median_difference_cm"] == pytest.approx(-1.4)   # differences -1.0 -1.1 -1.3 -1.6 -2.0 -1.5
+    with pytest.raises(SystemExit, match="first_seed"):
+        mod.compare(run(base_d, {}), run(low_d, {"first_seed": 5000}))
+
+
 # ------------------------------------------------------------------------------ jaxarm.paper.comparison
 def _fake_run(folder, arm, target, hands, naive_hands, successes):
     """A run folder as `jaxarm train` writes it, with only what reach_stats reads."""
