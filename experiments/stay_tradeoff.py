@@ -54,19 +54,19 @@ def main(argv=None) -> int:
 
     from jaxarm.analysis.reach import reach_metrics
     from jaxarm.analysis.stats import intraclass_correlation, set_mean_reliability
-    from jaxarm.learning.metaparams import NAMES, MetaParams
+    from jaxarm.config.validate import ConfigError
+    from jaxarm.experiment import _parse_overrides
+    from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.paper import presets
     from jaxarm.run import Batch, stack_rows
     from jaxarm.task.config import Target, TaskConfig
 
     preset = presets.load(args.preset)
-    overrides = {}
-    for item in args.set:
-        name, _, value = item.partition("=")
-        if name not in NAMES:
-            raise SystemExit(f"--set {item}: {name!r} is not a metaparameter; known: {', '.join(NAMES)}")
-        overrides[name] = float(value)
+    try:
+        overrides = _parse_overrides(args.set)   # jaxarm train's --set: known names, within their bounds
+    except ConfigError as e:
+        raise SystemExit(f"stay_tradeoff: {e}") from None
     sets = [MetaParams.from_dict({**row["metaparams"], **overrides}) for row in preset.top[: args.sets]]
     if len(sets) < args.sets:
         raise SystemExit(f"--sets {args.sets}: the preset has {len(sets)} top sets")
