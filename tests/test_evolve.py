@@ -574,8 +574,10 @@ def test_killed_process_resumes_bit_for_bit(tmp_path):
     assert full.returncode == 0, full.stderr
 
     killed_dir = tmp_path / "killed"
+    # killed mid-run: kept off the suite's shared compilation cache, whose entries are not written atomically
     proc = subprocess.Popen([sys.executable, str(script), *args, "--out", str(killed_dir)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            env=dict(os.environ, JAX_ENABLE_COMPILATION_CACHE="false"))
     deadline = time.time() + 300
     while not (killed_dir / "checkpoints" / "2").exists():
         assert proc.poll() is None and time.time() < deadline, "the search ended before it could be killed"
