@@ -3,19 +3,19 @@
 The whole suite runs on two CPU devices (as `jaxarm` commands do on a 2-core machine): every batch command splits
 its networks over both, and tests can compare a one-device mesh with the two-device one in one process.
 
-Every test, and every process a test starts, shares one persistent XLA compilation cache (``.cache/jax-tests`` in the
-checkout, git-ignored, capped at 2 GB): about half of the suite's time is compiling, and the slow suite, the CLI
-processes and the notebooks compile many of the programs the default suite already did. A cached program is the same
-executable, so no result changes. Set ``JAX_COMPILATION_CACHE_DIR`` to use another folder.
+Every test, and every process a test starts, shares one persistent XLA compilation cache (``.pytest_cache/jax-xla``
+in the checkout, git-ignored; ``pytest --cache-clear`` empties it): about half of the suite's time is compiling, and
+the slow suite, the CLI processes and the notebooks compile many of the programs the default suite already did. A
+cached program is the same executable, so no result changes. Set ``JAX_COMPILATION_CACHE_DIR`` to use another folder.
 """
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
-os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".cache" / "jax-tests"))
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR",
+                      str(Path(__file__).resolve().parents[1] / ".pytest_cache" / "jax-xla"))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
-os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(2 * 2**30))
 
 import jax  # noqa: E402  (reads the cache settings above when imported)
 

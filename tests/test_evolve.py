@@ -574,7 +574,7 @@ def test_killed_process_resumes_bit_for_bit(tmp_path):
     assert full.returncode == 0, full.stderr
 
     killed_dir = tmp_path / "killed"
-    # killed mid-run: kept off the suite's shared compilation cache, whose entries are not written atomically
+    # killed mid-run: kept off the suite's shared compilation cache (JAX writes its entries in place, not atomically)
     proc = subprocess.Popen([sys.executable, str(script), *args, "--out", str(killed_dir)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
                             env=dict(os.environ, JAX_ENABLE_COMPILATION_CACHE="false"))
