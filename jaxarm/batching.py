@@ -26,6 +26,32 @@ def when_any(pred, f: Callable[[Any, Any], Any], x, aux=None):
     ``f`` maps the pytree ``x`` to a pytree of the same structure, shapes and dtypes; everything traced it needs is
     passed in ``aux`` (it must not close over traced values). Without ``vmap`` this is a ``lax.cond``.
     """
+    aux = jax.tree_util.tree_map(jnp.asarray, aux)
+    # Only the leaves of aux that f reads enter the custom_vmap call; the others become constants inside it. The call
+    # is opaque to dead-code elimination, so a pytree passed in whole (the metaparameters) would otherwise count as
+    # read, whether f reads it or not (tests/test_learning.py checks that the model reads every metaparameter).
+    leaves, tree = jax.tree_util.tree_flatten(aux)
+    read = _leaves_read(f, x, aux)
+    shapes = [(jnp.shape(v), v.dtype) for v in leaves]
+
+    def f_read(x, kept):
+        it = iter(kept)
+        full = [next(it) if r else jnp.zeros(shape, dtype) for r, (shape, dtype) in zip(read, shapes)]
+        return f(x, jax.tree_util.tree_unflatten(tree, full))
+
+    return _when_any(jnp.asarray(pred, bool), f_read, x, [v for v, r in zip(leaves, read) if r])
+
+
+def _leaves_read(f, x, aux) -> list[bool]:
+    """Per leaf of ``aux``: whether tracing ``f(x, aux)`` uses it at all."""
+    jaxpr = jax.make_jaxpr(f)(x, aux).jaxpr
+    n_x = len(jax.tree_util.tree_leaves(x))
+    used = {id(v) for eqn in jaxpr.eqns for v in eqn.invars} | {id(v) for v in jaxpr.outvars}
+    return [id(v) in used for v in jaxpr.invars[n_x:]]
+
+
+def _when_any(pred, f: Callable[[Any, Any], Any], x, aux):
+    """:func:`when_any` of a bool ``pred`` and an ``aux`` of arrays, every one of which ``f`` reads."""
 
     @jax.custom_batching.custom_vmap
     def update(p, x, aux):
@@ -46,7 +72,7 @@ def when_any(pred, f: Callable[[Any, Any], Any], x, aux=None):
             aux, p = aux_p
             return _select(p, jax.vmap(f, in_axes=(0, aux_axes))(x, aux), x)
 
-        out = when_any(jnp.any(p), run, x, (aux, p))
+        out = _when_any(jnp.any(p), run, x, (aux, p))
         return out, jax.tree_util.tree_map(lambda _: True, out)
 
-    return update(jnp.asarray(pred, bool), x, jax.tree_util.tree_map(jnp.asarray, aux))
+    return update(pred, x, aux)

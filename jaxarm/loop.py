@@ -186,10 +186,12 @@ class ClosedLoop:
     def net_params(self, mp: MetaParams) -> NetworkParams:
         return NetworkParams(max_plast_t_ms=jnp.asarray(mp.max_plast_t_ms, jnp.float32))
 
-    def init(self, noise_key, wgain, rule, em_rates_hz, target: Target | None = None) -> LoopState:
+    def init(self, noise_key, wgain, rule, em_rates_hz, target: Target | None = None,
+             code_rate_scale=1.0) -> LoopState:
         """State at the start of a run (an epoch or the test): cells at rest, arm at the start posture. ``rule``: the
         learning rule's state within the run (its ``begin_epoch``'s; None for a run without learning),
-        ``em_rates_hz``: (4,) EM noise rates, Hz; ``target``: where to reach (default: the task's named target)."""
+        ``em_rates_hz``: (4,) EM noise rates, Hz; ``target``: where to reach (default: the task's named target);
+        ``code_rate_scale``: a target code's rate scale (``MetaParams.code_rate_scale``; read only with a code)."""
         target = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32),
                               self.config.task.target_params if target is None else target)
         arm_state = self.arm.init(self.start_q)
@@ -199,7 +201,8 @@ class ClosedLoop:
         net = self.net.init(noise_key, wgain=wgain, em_rates_hz=em_rates_hz)
         if self.config.network.spec.target_codes:   # target-coding generators: the target's direction
             start_xy = jnp.asarray(self.config.task.start_xy_m, jnp.float32)
-            net = self.net.set_target(net, jnp.arctan2(target.xy_m[1] - start_xy[1], target.xy_m[0] - start_xy[0]))
+            net = self.net.set_target(net, jnp.arctan2(target.xy_m[1] - start_xy[1], target.xy_m[0] - start_xy[0]),
+                                      code_rate_scale)
         err0 = self._critic_error(self.arm.observe(arm_state), target)
         return LoopState(net=net, arm=arm_state, readout=ro.init_readout(self.config.network), rule=rule,
                          err_hist_m=jnp.stack([err0, err0]), target=target)
@@ -249,12 +252,19 @@ class ClosedLoop:
             return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal), spikes, obs.muscles
         return state, IntervalRecord(obs.hand, obs.q, u, em_counts, signal)
 
+    def code_wiring(self, wiring, mp: MetaParams):
+        """``wiring`` with a target code's weight and density scaled by ``mp`` (``code_weight_scale``,
+        ``code_density_scale``); ``wiring`` itself in a network without a target code."""
+        return self.net.target_code_wiring(wiring, mp.code_weight_scale, mp.code_density_scale)
+
     def run(self, wiring, state: LoopState, key, mp: MetaParams, n_intervals: int, learn: bool):
         """``n_intervals`` interface periods by ``lax.scan``. Returns (state, IntervalRecord time-major)."""
         return self.run_keys(wiring, state, jax.random.split(key, n_intervals), mp, learn)
 
     def run_keys(self, wiring, state: LoopState, keys, mp: MetaParams, learn: bool):
         """One interface period per key of ``keys`` (intervals, 2); :meth:`run` with the keys already split."""
+        wiring = self.code_wiring(wiring, mp)
+
         def body(s, k):
             return self.interval(wiring, s, k, mp, learn)
 
@@ -267,6 +277,8 @@ class ClosedLoop:
         interval, or None for the simple arm or without ``muscles`` (static): stacking them is not free); state and
         IntervalRecord equal :meth:`run_keys`'s."""
         from jaxarm import record as rec_mod
+
+        wiring = self.code_wiring(wiring, mp)
 
         def body(carry, k):
             s, b = carry

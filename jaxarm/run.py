@@ -30,7 +30,7 @@ import numpy as np
 from jaxarm import parallel, runfolder
 from jaxarm.config.network import RUNTIME_FIELDS, SPEC_KEYS
 from jaxarm.config.validate import ConfigError
-from jaxarm.learning.metaparams import NAMES, MetaParams, without_retired
+from jaxarm.learning.metaparams import NAMES, MetaParams, as_current
 from jaxarm.learning.registry import learning_meta
 from jaxarm.loop import LoopConfig
 from jaxarm.network import Network, NetworkConfig
@@ -275,11 +275,11 @@ class Runner:
         """Refuse to resume a checkpoint written by a different run (a folder from before the kernel was recorded
         resumes on either kernel). The layout (devices, processes) may differ: results do not depend on it."""
         saved = {k: v for k, v in saved.items() if k not in ("layout", "learning_curve")}
-        recorded = saved.get("metaparams")   # a folder from before the RETIRED names left: compare without them
+        recorded = saved.get("metaparams")   # a folder from before RETIRED names left or ADDED ones came: as today
         if isinstance(recorded, dict):
-            saved["metaparams"] = without_retired(recorded)
+            saved["metaparams"] = as_current(recorded)
         elif isinstance(recorded, list):
-            saved["metaparams"] = [without_retired(m) if isinstance(m, dict) else m for m in recorded]
+            saved["metaparams"] = [as_current(m) if isinstance(m, dict) else m for m in recorded]
         mine = self.meta()
         if "kernel" not in saved:
             mine.pop("kernel")

@@ -140,7 +140,7 @@ def make_interval_train(config: LoopConfig = LoopConfig(), record=None) -> Train
         tr = carry.trained
         noise_key = jax.random.fold_in(tr.noise_key, carry.epoch) if config.reseed_noise_each_epoch else tr.noise_key
         run, em_rates_hz = rule.begin_epoch(tr.rule, tr.wgain, mp)
-        state = loop.init(noise_key, tr.wgain, run, em_rates_hz, target)
+        state = loop.init(noise_key, tr.wgain, run, em_rates_hz, target, mp.code_rate_scale)
         k_epoch = jax.random.fold_in(carry.key, carry.epoch)
         # Run all but the last 10 s, snapshot the spike counts, run the rest: rates over the last 10 s as the spec.
         k1, k2 = jax.random.split(k_epoch)
@@ -173,7 +173,7 @@ def make_interval_train(config: LoopConfig = LoopConfig(), record=None) -> Train
     def test(key, trained: Trained, mp: MetaParams, target: Target | None = None) -> TestResult:
         rates = bab.em_noise_rates_in_test(mp)
         # The original re-seeds the noise streams identically at every run(), the test included.
-        state = loop.init(trained.noise_key, trained.wgain, None, rates, target)
+        state = loop.init(trained.noise_key, trained.wgain, None, rates, target, mp.code_rate_scale)
         if task.test_em_noise_events == "netstim":
             # a NetStim stops once its event count reaches number = tstop * rate / 1000 (a real number)
             number = task.test_duration_s * jnp.asarray(mp.em_noise_rate_test_hz, jnp.float32)

@@ -230,3 +230,68 @@ def test_the_centre_out_fitness_is_the_mean_shortfall_of_one_trained_network():
     assert float(value) == pytest.approx(np.maximum(closest - 0.02, 0.0).mean(), abs=1e-6)
     assert float(metrics["success_rate"]) == pytest.approx((closest <= 0.04).mean())
     assert f.network_seconds_per_eval == pytest.approx(0.8 + 4 * 1.0)
+
+
+# ------------------------------------------------------------------ the target code's metaparameters (traced)
+def _code_spec(task, weight_mv=2.0, pmat=0.2, rate_hz=100.0):
+    return with_target_code(NetworkSpec.dura_bernal_2015(), task, weight_mv=weight_mv, pmat=pmat, rate_hz=rate_hz)
+
+
+def test_code_weight_and_density_scales_give_the_spec_at_that_weight_and_density():
+    """The reference is the spec itself: a code at 2 mV scaled by 2 has exactly the synapses of a code at 4 mV, and
+    a density scale of 1/2 keeps, in every EM cell, exactly the partners the wiring of a code at half the density
+    draws from the same key (14 of 64 at pmat 0.2 -> 7 at 0.1); the rest deliver nothing. At both scales 1 the wiring
+    is unchanged."""
+    from jaxarm.network.network import Network
+    from jaxarm.network.wiring import WiringLayout
+
+    task = CentreOut()
+    key = jax.random.PRNGKey(3)
+    net = Network(NetworkConfig(spec=_code_spec(task)))
+    wiring = net.make_wiring(key)
+    block = WiringLayout(net.config).synapses("T->EM")
+
+    same = net.target_code_wiring(wiring, 1.0, 1.0)
+    for a, b in zip(jax.tree.leaves(same), jax.tree.leaves(wiring)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+    heavy = Network(NetworkConfig(spec=_code_spec(task, weight_mv=4.0))).make_wiring(key)
+    doubled = net.target_code_wiring(wiring, 2.0, 1.0)
+    np.testing.assert_array_equal(np.asarray(doubled.weight), np.asarray(heavy.weight))
+    np.testing.assert_array_equal(np.asarray(doubled.nmda), np.asarray(heavy.nmda))
+    assert np.asarray(doubled.weight[block]).min() == 4.0
+
+    sparse_net = Network(NetworkConfig(spec=_code_spec(task, pmat=0.1)))
+    sparse = sparse_net.make_wiring(key)
+    k, k_half = WiringLayout(net.config).in_degree["T->EM"], WiringLayout(sparse_net.config).in_degree["T->EM"]
+    assert (k, k_half) == (14, 7)                           # pmat x pmat_scale x 64 T cells, rounded
+    halved = net.target_code_wiring(wiring, 1.0, 0.5)
+    n_em = net.config.size("EM")
+    pre = np.asarray(wiring.pre[block]).reshape(n_em, k)
+    w = np.asarray(halved.weight[block]).reshape(n_em, k)
+    sparse_block = WiringLayout(sparse_net.config).synapses("T->EM")
+    np.testing.assert_array_equal(pre[:, :k_half], np.asarray(sparse.pre[sparse_block]).reshape(n_em, k_half))
+    assert (w[:, :k_half] == 2.0).all() and (w[:, k_half:] == 0.0).all()
+    assert (np.asarray(halved.nmda[block]).reshape(n_em, k)[:, k_half:] == 0.0).all()
+    other = np.ones(wiring.weight.shape[0], bool)
+    other[block] = False                                  # nothing outside the code's pathway changes
+    np.testing.assert_array_equal(np.asarray(halved.weight)[other], np.asarray(wiring.weight)[other])
+
+
+def test_code_rate_scale_gives_the_spec_at_that_rate():
+    """A code at 100 Hz scaled by 0.5 fires the intervals of a code at 50 Hz (80 steps of 0.25 ms); scale 1, traced,
+    the spec's own; the silent groups stay silent."""
+    from jaxarm.network import proprio
+
+    task = CentreOut()
+    fast, slow = NetworkConfig(spec=_code_spec(task)), NetworkConfig(spec=_code_spec(task, rate_hz=50.0))
+    direction = jax.numpy.float32(math.pi)                   # left: direction group 4
+    for scale, reference in ((0.5, slow), (1.0, fast)):
+        got = jax.jit(lambda s: proprio.set_target(fast, proprio.init_p(fast), direction, 40, s))(
+            jax.numpy.float32(scale))
+        want = proprio.set_target(reference, proprio.init_p(reference), direction, 40)
+        np.testing.assert_array_equal(np.asarray(got.interval_steps), np.asarray(want.interval_steps))
+        np.testing.assert_array_equal(np.asarray(got.next_step), np.asarray(want.next_step))
+    intervals = np.asarray(proprio.set_target(fast, proprio.init_p(fast), direction, 40, 0.5).interval_steps)
+    assert sorted(set(intervals[-64:].tolist())) == [80, proprio.NEVER_STEPS]
+    assert (intervals[-64:] == 80).sum() == 8                # the 8 cells of the left group

@@ -368,10 +368,10 @@ def test_genetic_algorithm_improves():
                           strategy_params={"crossover_rate": 0.2})
     search = make_search(fit.make_quadratic(0.0), SearchSpace(), config)
     h = search.run_chunk(search.init(KEY)).history
-    # the best fitness found so far (a GA's generation best wanders: no elite is kept); 0.39-0.51 of the first
-    # generation's over keys 0-4 on the 13-field space
+    # the best fitness found so far (a GA's generation best wanders: no elite is kept); 0.32-0.67 of the first
+    # generation's over keys 0-4 on the 16-field space (0.39-0.51 on the 13 fields before the target code's three)
     best = np.asarray(h.best_so_far)
-    assert best[-1] < 0.6 * best[0]
+    assert best[-1] < 0.75 * best[0]
 
 
 # --------------------------------------------------------------------------------------------- checkpoints / resume

@@ -302,10 +302,21 @@ def test_metaparams_hold_the_original_values():
     assert d["max_plast_t_ms"] == 69.57 and d["max_elig_tr_dur_ms"] == 62.28 and d["v_em_max"] == 117.92
     assert d["mcmd_spk_wd_ms"] == 76.08 and d["rl_dt_ms"] == 55.55 and d["random_muscle_dt_max_ms"] == 624.12
     assert d["em_noise_rate_train_hz"] == 152.76 and d["em_noise_rate_test_hz"] == 99.01
-    assert d["syn_scaling_dt_ms"] == 5000.0 and d["explore_tot"] == 16.0 and len(d) == 13
+    assert d["syn_scaling_dt_ms"] == 5000.0 and d["explore_tot"] == 16.0 and len(d) == 16
     assert all(jnp.asarray(leaf).dtype == jnp.float32 for leaf in jax.tree_util.tree_leaves(MP))
     with pytest.raises(KeyError, match="learning_rate"):
         MetaParams.from_dict({"learning_rate": 0.1})
+
+
+def test_sets_saved_before_the_target_code_names_load_with_them_at_1():
+    from jaxarm.learning.metaparams import CODE_NAMES
+    from jaxarm.paper.presets import check_metaparams
+
+    old = {k: v for k, v in ORIGINAL.items() if k not in CODE_NAMES} | {"learn_rate": 0.05}
+    assert len(old) == 13
+    assert MetaParams.from_dict(old).to_dict() == {**ORIGINAL, "learn_rate": 0.05}
+    assert check_metaparams(old, "best") == {**ORIGINAL, "learn_rate": 0.05}
+    assert all(ORIGINAL[n] == 1.0 for n in CODE_NAMES)
 
 
 def test_sets_saved_with_the_retired_names_load_without_them():
@@ -316,28 +327,50 @@ def test_sets_saved_with_the_retired_names_load_without_them():
         MetaParams.from_dict({"max_w": 0.7})
 
 
-@pytest.mark.parametrize("arm", ["simple", "musculoskeletal"])
-def test_every_metaparameter_is_read_by_training_or_the_test(arm):
-    """MetaParams holds only what the model reads: no field is dead code in the traced training and test (a field
-    the kernel ignored, as max_w_scaling was, fails here); the check itself flags an input nothing reads."""
+def _unread_metaparameters(train, test) -> list[str]:
+    """The MetaParams fields that nothing in the traced training and test reads (jaxpr dead-code elimination); the
+    check itself flags an extra input nothing reads."""
     from jax._src.interpreters import partial_eval as pe
 
-    from jaxarm.loop import LoopConfig
-    from jaxarm.task.config import TaskConfig
-    from jaxarm.train import make_train
-
-    fns = make_train(LoopConfig(arm=arm, task=TaskConfig(epochs=1, epoch_duration_s=0.3, test_duration_s=0.1)))
-
     def train_and_test(mp, unread):
-        trained, history = fns.train(jax.random.PRNGKey(0), mp)
-        return jax.tree.leaves((trained, history, fns.test(jax.random.PRNGKey(1), trained, mp)))
+        trained, history = train(jax.random.PRNGKey(0), mp)
+        return jax.tree.leaves((trained, history, test(jax.random.PRNGKey(1), trained, mp)))
 
     closed = jax.make_jaxpr(train_and_test)(MP, jnp.float32(0.0))
     _, used = pe.dce_jaxpr(closed.jaxpr, [True] * len(closed.jaxpr.outvars))
     names = [jax.tree_util.keystr(path) for path, _ in jax.tree_util.tree_flatten_with_path((MP, 0.0))[0]]
     assert len(names) == len(NAMES) + 1 and all(n in names[i] for i, n in enumerate(NAMES))
     unread = [name for name, u in zip(names, used) if not u]
-    assert unread == ["[1]"], f"metaparameters nothing reads: {unread[:-1]}"
+    assert unread[-1:] == ["[1]"], "the check lost its unread input"
+    return [name.split(".")[-1] for name in unread[:-1]]
+
+
+@pytest.mark.parametrize("arm", ["simple", "musculoskeletal"])
+def test_every_metaparameter_is_read_by_training_or_the_test(arm):
+    """MetaParams holds only what the model reads: no field is dead code in the traced training and test (a field
+    the kernel ignored, as max_w_scaling was, fails here), but the target code's three, which a network without a
+    target code (the paper's) must not read."""
+    from jaxarm.learning.metaparams import CODE_NAMES
+    from jaxarm.loop import LoopConfig
+    from jaxarm.task.config import TaskConfig
+    from jaxarm.train import make_train
+
+    fns = make_train(LoopConfig(arm=arm, task=TaskConfig(epochs=1, epoch_duration_s=0.3, test_duration_s=0.1)))
+    assert _unread_metaparameters(fns.train, fns.test) == list(CODE_NAMES)
+
+
+def test_a_network_with_a_target_code_reads_every_metaparameter():
+    """The centre-out task's network (the paper's and a target code) reads all of them, the code's three included."""
+    from jaxarm.loop import LoopConfig
+    from jaxarm.run_centre_out import make_centre_out_train
+    from jaxarm.config.network import NetworkConfig
+    from jaxarm.config.spec import NetworkSpec
+    from jaxarm.task.centre_out import CentreOut, with_target_code
+
+    task = CentreOut(targets=("right", "left"), epochs_per_target=1, epoch_duration_s=0.3, test_duration_s=0.1)
+    network = NetworkConfig(spec=with_target_code(NetworkSpec.dura_bernal_2015(), task))
+    fns = make_centre_out_train(LoopConfig(arm="simple", network=network, task=task.task_config()), task)
+    assert _unread_metaparameters(fns.train, fns.test) == []
 
 
 def test_bounds_table_and_unit_cube_mapping():

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from jaxarm import experiment
+from jaxarm.learning.metaparams import as_current
 
 PRESETS = Path(experiment.__file__).resolve().parent / "paper" / "presets"
 
@@ -34,7 +35,7 @@ def _train(argv, monkeypatch):
 @pytest.mark.parametrize("index", [None, 0, 7])
 def test_preset_metaparameters_are_the_files(tmp_path, monkeypatch, index):
     stored = json.loads((PRESETS / "simple-cmaes-left-shoulder.json").read_text())
-    want = stored["best"] if index is None else stored["top"][index]["metaparams"]
+    want = as_current(stored["best"] if index is None else stored["top"][index]["metaparams"])
     argv = ["--preset", "simple-cmaes-left-shoulder", "--out", str(tmp_path / "run")]
     code, err, caught = _train(argv + ([] if index is None else ["--set-from-preset", str(index)]), monkeypatch)
     assert code == 0, err
@@ -47,7 +48,7 @@ def test_preset_protocol_epochs_and_set_on_top(tmp_path, monkeypatch):
     code, err, caught = _train(["--preset", "simple-rerank-bottom-24", "--set", "v_em_max=60", "--out",
                                 str(tmp_path / "run")], monkeypatch)
     assert code == 0, err
-    assert caught["mp"] == pytest.approx({**stored["best"], "v_em_max": 60.0}, rel=1e-6)
+    assert caught["mp"] == pytest.approx({**as_current(stored["best"]), "v_em_max": 60.0}, rel=1e-6)
     assert caught["epochs"] == [stored["protocol"]["epochs"]]
 
 

@@ -36,6 +36,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm.evolve import fitness
+from jaxarm.learning.metaparams import CODE_NAMES
 from jaxarm.loop import LoopConfig
 from jaxarm.task.config import TaskConfig
 
@@ -114,6 +115,7 @@ def make_reaching(options: fitness.FitnessOptions, per_target=_authors_distance,
 
     test_s = fns[0].loop.config.task.test_duration_s
     return fitness.Fitness(fn, network_seconds_per_eval=len(options.targets) * (train_s + test_s),
+                           ignores=() if network.spec.target_codes else CODE_NAMES,
                            epochs=fns[0].loop.config.task.epochs)
 
 

@@ -7,7 +7,7 @@ from jaxarm.learning.babbling import (EXPLORE_PATTERNS, BabblingConfig, Babbling
                                       em_noise_rates_in_test, init_babbling, pattern_rates, start_epoch)
 from jaxarm.learning.critic import MIN_ERROR_CHANGE_M, critic_signal, rl_update_due
 from jaxarm.learning.metaparams import (BOUNDS, NAMES, ORIGINAL, RETIRED, Bound, MetaParams, clip_to_bounds, from_unit,
-                                        stack, to_unit, without_retired)
+                                        stack, to_unit, as_current)
 from jaxarm.learning.stdp import NEVER_SPIKED_MS, NO_TAG_MS, EligibilityConfig, dopamine_update, eligible
 
 __all__ = [
@@ -15,6 +15,6 @@ __all__ = [
     "pattern_rates", "start_epoch",
     "MIN_ERROR_CHANGE_M", "critic_signal", "rl_update_due",
     "BOUNDS", "NAMES", "ORIGINAL", "RETIRED", "Bound", "MetaParams", "clip_to_bounds", "from_unit", "stack", "to_unit",
-    "without_retired",
+    "as_current",
     "NEVER_SPIKED_MS", "NO_TAG_MS", "EligibilityConfig", "dopamine_update", "eligible",
 ]

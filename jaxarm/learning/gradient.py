@@ -127,7 +127,7 @@ def make_gradient_train(config: LoopConfig, record, interval_train):
         """Mean hand-target distance (m) of one reach with background noise ``noise_key`` and the first
         ``n_train`` gains replaced by ``gains``; aux: (min, final distance, spike counts (n_all,))."""
         state = loop.init(noise_key, trained.wgain.at[:n_train].set(gains), None,
-                          bab.em_noise_rates_in_test(mp), target)
+                          bab.em_noise_rates_in_test(mp), target, mp.code_rate_scale)
         # the loop's keys feed the learning rule only, which a reach without learning does not run
         state, rec = loop.run(trained.wiring, state, jax.random.key(0), mp, reach, learn=False)
         dist = jnp.linalg.norm(rec.hand_m - state.target.xy_m, axis=-1)

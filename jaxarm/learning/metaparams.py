@@ -6,7 +6,8 @@ is a float array so that evolution can ``vmap`` over sets of them; code that nee
 converts it where it is used, the way the original did (``int()``).
 
 The authors' evolutionary interface (2016 code, same model) has 21 parameters. We keep the 13 that the network, the
-readout, the critic and the learning rule read. Left out, with reasons:
+readout, the critic and the learning rule read, and add three of our own for the centre-out task's target code
+(:data:`CODE_NAMES`, read only by a network with a target code). Left out, with reasons:
 
 * p1 ``maxwscaling`` (0.70): the maxw of I->X synapses, which are not plastic in the 2015 model: no effect. Sets saved
   before it left (presets, results.json) still carry it; :meth:`MetaParams.from_dict` drops it (:data:`RETIRED`).
@@ -35,6 +36,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jaxarm.network.proprio import MAX_CODE_RATE_SCALE
+
 
 @struct.dataclass
 class MetaParams:
@@ -55,6 +58,15 @@ class MetaParams:
         em_noise_rate_test_hz: AMPA noise rate to all EM cells in the test, Hz [99.01].
         syn_scaling_dt_ms: period of global synaptic scaling in training, ms [5000] (the EA's p18, in s there).
         explore_tot: length of the babbling pattern sequence; patterns 0 .. ceil(explore_tot/2)-1 are drawn [16].
+        code_weight_scale: a target code's pathway weights times this, dimensionless [1].
+        code_rate_scale: a target code's firing rate times this, dimensionless [1].
+        code_density_scale: a target code's pathway density times this (at most 1: the spec's density is the
+            largest; the first inputs of each cell are kept), dimensionless [1].
+
+    The last three are ours, not the authors': they tune the target code of the centre-out task
+    (:func:`jaxarm.task.centre_out.with_target_code`, :func:`jaxarm.network.proprio.target_code_wiring`) relative to
+    the network spec, so evolution can search the code in the same compiled loop. A network without a target code
+    (the paper's) does not read them; the reaching fitnesses freeze them.
     """
 
     learn_rate: jnp.ndarray
@@ -70,6 +82,9 @@ class MetaParams:
     em_noise_rate_test_hz: jnp.ndarray
     syn_scaling_dt_ms: jnp.ndarray
     explore_tot: jnp.ndarray
+    code_weight_scale: jnp.ndarray
+    code_rate_scale: jnp.ndarray
+    code_density_scale: jnp.ndarray
 
     @classmethod
     def original(cls) -> "MetaParams":
@@ -78,9 +93,9 @@ class MetaParams:
 
     @classmethod
     def from_dict(cls, values: dict) -> "MetaParams":
-        """Build from ``{name: value}``; missing names take the original values; the :data:`RETIRED` names of sets
-        saved before they left are dropped; other unknown names raise KeyError."""
-        values = without_retired(values)
+        """Build from ``{name: value}``; missing names take the original values (:data:`ADDED` ones too); the
+        :data:`RETIRED` names of sets saved before they left are dropped; other unknown names raise KeyError."""
+        values = as_current(values)
         unknown = set(values) - set(ORIGINAL)
         if unknown:
             raise KeyError(f"unknown metaparameter(s) {sorted(unknown)}; known: {', '.join(ORIGINAL)}")
@@ -108,7 +123,13 @@ ORIGINAL: dict[str, float] = {
     "em_noise_rate_test_hz": 99.01,
     "syn_scaling_dt_ms": 5000.0,
     "explore_tot": 16.0,
+    "code_weight_scale": 1.0,   # ours: the target code, relative to its spec (see MetaParams)
+    "code_rate_scale": 1.0,
+    "code_density_scale": 1.0,
 }
+
+#: The metaparameters of a target code (ours; read only by a network that has one).
+CODE_NAMES: tuple[str, ...] = ("code_weight_scale", "code_rate_scale", "code_density_scale")
 
 #: Field order (the order of :func:`to_unit` vectors).
 NAMES: tuple[str, ...] = tuple(ORIGINAL)
@@ -121,9 +142,15 @@ RETIRED: dict[str, str] = {
 }
 
 
-def without_retired(values: dict) -> dict:
-    """``values`` without the :data:`RETIRED` names."""
-    return {k: v for k, v in values.items() if k not in RETIRED}
+#: Names added after sets were first saved (presets, results.json): a set saved without them takes these values,
+#: the ones it was made with.
+ADDED: dict[str, float] = {name: ORIGINAL[name] for name in CODE_NAMES}
+
+
+def as_current(values: dict) -> dict:
+    """A saved set in this version's names: without the :data:`RETIRED` names, with the :data:`ADDED` ones at their
+    values when absent."""
+    return {**ADDED, **{k: v for k, v in values.items() if k not in RETIRED}}
 
 
 class Bound(NamedTuple):
@@ -150,6 +177,9 @@ BOUNDS: dict[str, Bound] = {
     "em_noise_rate_test_hz": Bound(10.0, 400.0, "linear", "Hz"),   # p20
     "syn_scaling_dt_ms": Bound(1000.0, 30000.0, "log", "ms"),      # p18
     "explore_tot": Bound(2.0, 32.0, "linear", "patterns x 2"),     # p19
+    "code_weight_scale": Bound(0.25, 4.0, "log", "x spec weight"),
+    "code_rate_scale": Bound(0.25, MAX_CODE_RATE_SCALE, "log", "x spec rate"),
+    "code_density_scale": Bound(0.1, 1.0, "linear", "x spec density"),
 }
 
 

@@ -225,10 +225,18 @@ class Network:
         """New muscle lengths (4,) in m (GROUPS order) for the P code, from now on."""
         return state._replace(p=proprio_mod.set_lengths(self.config, state.p, lengths_m, state.step))
 
-    def set_target(self, state: State, direction_rad) -> State:
+    def set_target(self, state: State, direction_rad, rate_scale=1.0) -> State:
         """Point every target code (generator populations with ``code="target"``) at the direction
-        ``direction_rad`` (rad, counterclockwise from +x), from now on; a no-op in the paper's network."""
-        return state._replace(p=proprio_mod.set_target(self.config, state.p, direction_rad, state.step))
+        ``direction_rad`` (rad, counterclockwise from +x), firing at its ``rate_hz`` times ``rate_scale``, from now
+        on; a no-op in the paper's network."""
+        return state._replace(p=proprio_mod.set_target(self.config, state.p, direction_rad, state.step, rate_scale))
+
+    def target_code_wiring(self, wiring: Wiring, weight_scale, density_scale) -> Wiring:
+        """``wiring`` with the target codes' pathways at ``weight_scale`` times their weight and ``density_scale``
+        times their density (:func:`jaxarm.network.proprio.target_code_wiring`); ``wiring`` itself without a code."""
+        if not self.config.spec.target_codes:
+            return wiring
+        return proprio_mod.target_code_wiring(self.config, wiring, weight_scale, density_scale)
 
     def set_em_rates(self, state: State, em_rates_hz) -> State:
         """EM AMPA background rate per muscle group (4,), Hz, from now on."""

@@ -34,6 +34,7 @@ import numpy as np
 
 from jaxarm.config.network import NetworkConfig
 from jaxarm.network.populations import Populations
+from jaxarm.network.wiring import WiringLayout
 
 #: "Never" for a P interval or next spike, in steps (the original's 1e8 ms interval).
 NEVER_STEPS = 2 ** 30
@@ -110,24 +111,66 @@ def target_group(config: NetworkConfig, population: str, direction_rad):
     return jnp.round(jnp.asarray(direction_rad, jnp.float32) * (groups / (2.0 * np.pi))).astype(jnp.int32) % groups
 
 
-def set_target(config: NetworkConfig, p: PState, direction_rad, step) -> PState:
+def set_target(config: NetworkConfig, p: PState, direction_rad, step, rate_scale=1.0) -> PState:
     """Switch every target code to the direction ``direction_rad`` (rad) at clock step ``step``: the cells of the
-    nearest direction group fire at the population's ``rate_hz``, the others fall silent. A no-op without target
-    codes (the paper's network)."""
+    nearest direction group fire at the population's ``rate_hz`` times ``rate_scale`` (a traced metaparameter,
+    ``MetaParams.code_rate_scale``, at most :data:`MAX_CODE_RATE_SCALE`), the others fall silent. A no-op without
+    target codes (the paper's network)."""
     pops = Populations(config)
     for name in config.spec.target_codes:
         pop = config.spec.population(name)
         cells = slice(pops.start[name] - config.n_cells, pops.stop[name] - config.n_cells)
         group = jnp.asarray(pops.target_groups(name))
         on = group == target_group(config, name, direction_rad)
-        interval = jnp.where(on, max(1, config.steps(1000.0 / pop.rate_hz)), NEVER_STEPS).astype(jnp.int32)
+        interval = max(1, config.steps(1000.0 / pop.rate_hz))
+        if not (isinstance(rate_scale, (int, float)) and rate_scale == 1.0):
+            # the spec's own interval at scale 1 (as rounded in Python), so an unscaled code keeps its bits
+            scaled = jnp.maximum(1, jnp.round(1000.0 / (pop.rate_hz * jnp.asarray(rate_scale, jnp.float32))
+                                              / config.dt_ms)).astype(jnp.int32)
+            interval = jnp.where(jnp.asarray(rate_scale) == 1.0, interval, scaled)
+        interval = jnp.where(on, interval, NEVER_STEPS).astype(jnp.int32)
         p = _retime(p, interval, step, cells)
     return p
 
 
+#: The highest ``rate_scale`` :func:`set_target` is given (``MetaParams.code_rate_scale``'s upper bound): the P
+#: window's delivery loop is sized for the shortest interval a train can have.
+MAX_CODE_RATE_SCALE = 2.0
+
+
+def target_code_wiring(config: NetworkConfig, wiring, weight_scale, density_scale):
+    """``wiring`` with every target code's pathways scaled by two traced metaparameters: their AMPA and NMDA weights
+    times ``weight_scale`` (``MetaParams.code_weight_scale``), and in every post cell only the first
+    ``int(0.5 + pmat x density_scale x N_pre)`` of its inputs from the code kept, the others at weight 0
+    (``MetaParams.code_density_scale``, at most 1: the spec's ``pmat`` is the largest density).
+
+    The wiring draws a cell's partners as the largest of uniform keys, in descending order, so its first k inputs are
+    the partners that a wiring of the spec with in-degree k draws from the same key: a density scale gives the
+    spec's network at that density (the kept synapses' delays are drawn from the same law, not the same numbers).
+    At both scales 1 the wiring is unchanged, bit for bit. The plastic gains of the dropped synapses still change,
+    but they deliver nothing. ``wiring`` is the network's :class:`~jaxarm.network.wiring.Wiring` (no batch axes)."""
+    layout = WiringLayout(config)
+    weight, nmda = wiring.weight, wiring.nmda
+    weight_scale = jnp.asarray(weight_scale, jnp.float32)
+    density_scale = jnp.asarray(density_scale, jnp.float32)
+    for pw in layout.pathways:
+        if pw.pre not in config.spec.target_codes:
+            continue
+        n_post, k = config.size(pw.post), layout.in_degree[pw.name]
+        scaled = jnp.floor(0.5 + pw.pmat * config.pmat_scale * config.size(pw.pre) * density_scale)
+        kept = jnp.where(density_scale >= 1.0, k, scaled)
+        factor = jnp.tile(jnp.where(jnp.arange(k) < kept, weight_scale, 0.0), n_post)
+        synapses = layout.synapses(pw.name)
+        weight = weight.at[synapses].multiply(factor)
+        nmda = nmda.at[synapses].multiply(factor)
+    return wiring._replace(weight=weight, nmda=nmda)
+
+
 def min_interval_steps(config: NetworkConfig) -> int:
-    """The shortest train interval of any generator, steps (bounds the spikes one train has in a window)."""
-    rates = [config.p_rate_hz] + [config.spec.population(n).rate_hz for n in config.spec.target_codes]
+    """The shortest train interval of any generator, steps (bounds the spikes one train has in a window; a target
+    code at its highest rate scale, :data:`MAX_CODE_RATE_SCALE`)."""
+    rates = [config.p_rate_hz] + [config.spec.population(n).rate_hz * MAX_CODE_RATE_SCALE
+                                  for n in config.spec.target_codes]
     return min(max(1, config.steps(1000.0 / r)) for r in rates)
 
 

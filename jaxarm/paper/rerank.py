@@ -37,7 +37,7 @@ import numpy as np
 from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.arm.registry import ARMS, BACKENDS
 from jaxarm.config.validate import ConfigError
-from jaxarm.learning.metaparams import without_retired
+from jaxarm.learning.metaparams import as_current
 from jaxarm.paper import presets as preset_lib
 
 RANKING_FILE = "ranking.json"
@@ -86,7 +86,7 @@ def pool_from(sources: list[str], best: int | None, preset_dir: Path) -> tuple[l
             found = [(preset.best, f"{preset.name} best", [])]
             found += [(row["metaparams"], f"{preset.name} top[{i}]", []) for i, row in enumerate(preset.top)]
         for metaparams, where, runs in found:
-            metaparams = without_retired(metaparams)   # an earlier ranking's sets may carry them
+            metaparams = as_current(metaparams)   # an earlier ranking's sets may carry them
             sets.setdefault(_set_key(metaparams), {"metaparams": metaparams, "source": where,
                                                   "earlier": list(runs)})
     if not sets:

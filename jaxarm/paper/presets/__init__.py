@@ -48,7 +48,7 @@ import numpy as np
 
 from jaxarm.arm.registry import ARMS
 from jaxarm.config.validate import ConfigError
-from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams, without_retired
+from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams, as_current
 
 #: Where the package's preset files live (``--make-preset`` writes here by default, so the file can be committed).
 PRESET_DIR = Path(__file__).resolve().parent
@@ -164,10 +164,10 @@ def _protocol_of_old_sets(name: str, best, top) -> dict | None:
 def check_metaparams(values, where: str) -> dict:
     """A complete ``{field: float}`` set inside :data:`BOUNDS` (compared in float32, the type the model uses), or
     :class:`ConfigError` naming the field and its range. The :data:`~jaxarm.learning.metaparams.RETIRED` names of
-    older sets are dropped."""
+    older sets are dropped, and the :data:`~jaxarm.learning.metaparams.ADDED` ones take their values when absent."""
     if not isinstance(values, dict):
         raise ConfigError(f"{where}: must be an object {{field: value}} with every metaparameter ({', '.join(NAMES)})")
-    values = without_retired(values)
+    values = as_current(values)
     unknown = [k for k in values if k not in NAMES]
     if unknown:
         raise ConfigError(f"{where}: unknown metaparameter {unknown[0]!r}; known: {', '.join(NAMES)}")
