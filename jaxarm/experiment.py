@@ -230,7 +230,7 @@ def _configs(args) -> list[tuple[str, LoopConfig, object]]:
     for name, task in TASKS[getattr(args, "task", TASK_DEFAULT)].Config.from_options(
             targets=args.target, epochs=args.epochs, epoch_duration_s=args.epoch_s, test_duration_s=args.test_s,
             test_em_noise_events=args.test_em_noise_events):
-        net = network_config(args)
+        net = network_config(args, getattr(args, "preset_network", None))
         spec = task.prepare_spec(net.spec)
         if spec is not net.spec:
             net = dataclasses.replace(net, spec=spec)
@@ -364,10 +364,12 @@ def _train_targets(ap, args, configs, mp, record) -> int:
 
 def preset_metaparams(args) -> dict[str, float]:
     """The metaparameters ``--preset NAME [--set-from-preset INDEX]`` name ({} without ``--preset``: the authors'),
-    and ``args.epochs`` when not given: the preset's protocol's (the paper's 12 without a preset).
+    ``args.epochs`` when not given: the preset's protocol's (the paper's 12 without a preset), and
+    ``args.preset_network``: the preset's network (None: the paper's; ``--network`` takes precedence).
     :class:`ConfigError` in one line for an unknown name or an index out of range."""
     from jaxarm.paper import presets
 
+    args.preset_network = None
     if args.preset is None:
         if args.set_from_preset is not None:
             raise ConfigError(f"--set-from-preset {args.set_from_preset}: give the preset with --preset NAME")
@@ -390,6 +392,7 @@ def preset_metaparams(args) -> dict[str, float]:
         else:
             values = preset.top[i]["metaparams"]
         epochs = preset.epochs
+        args.preset_network = preset.network_config()
     if args.epochs is None:
         args.epochs = epochs
     return dict(values)

@@ -78,14 +78,17 @@ def unstack(mps: MetaParams) -> list[MetaParams]:
     return [MetaParams(**{k: np.asarray(getattr(mps, k))[i] for k in NAMES}) for i in range(n)]
 
 
-def network_config(source) -> NetworkConfig:
+def network_config(source, default: NetworkConfig | None = None) -> NetworkConfig:
     """The NetworkConfig of a run: ``source`` is a run's meta dict (every NetworkConfig field it records) or a
     command's parsed options (``--network FILE``, then ``--network-scale F``, then the :data:`NETWORK_OPTIONS`); an
-    option that is absent or None keeps NetworkConfig's default."""
+    option that is absent or None keeps the default: ``default`` (a preset's network) or NetworkConfig's."""
     if isinstance(source, dict):
         fields = ({f.name for f in dataclasses.fields(NetworkConfig)} | {"sizes", *SPEC_KEYS}) - set(RUNTIME_FIELDS)
         return NetworkConfig.from_dict({k: v for k, v in source.items() if k in fields and v is not None})
-    base = NetworkConfig.load(source.network) if getattr(source, "network", None) else NetworkConfig()
+    if getattr(source, "network", None):
+        base = NetworkConfig.load(source.network)
+    else:
+        base = default or NetworkConfig()
     scale = getattr(source, "network_scale", None)
     if scale is not None:
         try:

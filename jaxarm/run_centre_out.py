@@ -28,7 +28,7 @@ from jaxarm.config.validate import ConfigError
 from jaxarm.run import Runner, learning_curve, stack_rows
 from jaxarm.task.centre_out import CentreOut, ensure_target_code
 from jaxarm.task.config import Target
-from jaxarm.train import make_train
+from jaxarm.train import fresh_noise, make_train
 
 
 class CentreOutFns(NamedTuple):
@@ -79,11 +79,12 @@ def _per_network(x) -> np.ndarray:
     return np.ascontiguousarray(np.swapaxes(np.asarray(x), 0, 1))
 
 
-def summary(task: CentreOut, spec, seeds, history, res, naive) -> dict:
+def summary(task: CentreOut, spec, seeds, history, res, naive, held_out=None) -> dict:
     """The task's results from host arrays (``history`` (epochs, networks, ...) as :meth:`jaxarm.run.Runner.train`
     returns it; ``res``, ``naive``: TestResults (networks, targets, ...)): success per (network, target), counts per
-    target (trained and naive), the distribution of targets reached per network, median closest approach per target
-    (cm), hand paths (m) under ``trained["hand_m"]`` and ``naive["hand_m"]``."""
+    target (trained and naive), the distribution and median of targets reached per network, median closest approach
+    per target (cm), hand paths (m) under ``trained["hand_m"]`` and ``naive["hand_m"]``; with ``held_out`` (the
+    trained networks tested on noise streams no training used), the same under ``held_out``."""
     n_t = len(task.targets)
     hist = {"rates_last10s_hz": {p: _per_network(history.rates_last10s_hz)[:, :, j].mean(axis=0).round(3).tolist()
                                  for j, p in enumerate(spec.network_populations)},
@@ -99,11 +100,13 @@ def summary(task: CentreOut, spec, seeds, history, res, naive) -> dict:
            "naive_test_rates_hz": {p: np.asarray(naive.rates_hz)[..., j].mean().round(3).item()
                                    for j, p in enumerate(spec.network_populations)},
            "lost_spikes": int(np.asarray(history.lost_spikes).sum() + np.asarray(res.lost_spikes).sum())}
-    for name, r in (("trained", res), ("naive", naive)):
+    tests = (("trained", res), ("naive", naive)) + ((("held_out", held_out),) if held_out is not None else ())
+    for name, r in tests:
         ok = np.asarray(r.success)                                                # (networks, targets)
         out[name] = {"success": ok.astype(int).tolist(),
                      "per_target": {t: int(ok[:, k].sum()) for k, t in enumerate(task.targets)},
                      "targets_reached_per_network": np.bincount(ok.sum(axis=1), minlength=n_t + 1).tolist(),
+                     "median_targets_reached": float(np.median(ok.sum(axis=1))),
                      "median_min_distance_cm": {t: round(100 * float(np.median(np.asarray(r.min_distance_m)[:, k])), 2)
                                                 for k, t in enumerate(task.targets)},
                      "hand_m": np.asarray(r.hand_m)}
@@ -118,7 +121,7 @@ def train_and_test(config, task: CentreOut, seeds, mp, out=None, progress: bool 
         b = batch(config, task, seeds, mp, Path(tmp) if out is None else out)
         carry, history, *_ = b.train(progress=progress)
         return summary(task, b.config.network.spec, b.seeds, history, b.test(carry.trained),
-                       b.test(b.naive(), "naive test"))
+                       b.test(b.naive(), "naive test"), b.test(fresh_noise(carry.trained, 0), "held-out test"))
 
 
 def _learning_curve(curve: dict, naive_success, epoch_s: float) -> dict:
@@ -216,7 +219,7 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
         t0 = time.perf_counter()
         cfg = dataclasses.replace(config, network=dataclasses.replace(config.network, spec=specs[name]))
         r = train_and_test(cfg, task, seeds, mp, out / name, progress=progress)
-        for k in ("trained", "naive"):
+        for k in ("trained", "naive", "held_out"):
             r[k].pop("hand_m")
         r.update(condition=name, populations=list(specs[name].names),
                  network_seconds=len(r["seeds"]) * task.task_config().epochs * task.epoch_duration_s,
@@ -230,17 +233,28 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
 
 
 def table_markdown(result: dict) -> str:
-    """The per-target table of :func:`run_with_control`'s result: trained (naive) counts per condition, then the
-    networks by number of targets reached."""
+    """The per-target table of :func:`run_with_control`'s result: per condition, the trained networks' counts on
+    held-out noise (when measured), on their training noise and the naive networks'; then the networks by number
+    of targets reached, and the median number per network."""
     conds = list(result["conditions"].values())
     n = len(conds[0]["seeds"])
-    lines = ["| target (direction) | " + " | ".join(f"{c['condition']}: trained (naive)" for c in conds) + " |",
-             "|---|" + "---|" * len(conds)]
-    for k, t in enumerate(conds[0]["targets"]):
-        cells = [f"{c['trained']['per_target'][t]}/{n} ({c['naive']['per_target'][t]}/{n})" for c in conds]
-        lines.append(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
+    header, columns = [], []
     for c in conds:
-        lines.append(f"\n{c['condition']}: networks by number of targets reached (0..{len(c['targets'])}): "
-                     f"{c['trained']['targets_reached_per_network']} (naive "
-                     f"{c['naive']['targets_reached_per_network']})")
+        if "held_out" in c:
+            header.append(f"{c['condition']}: held-out noise")
+            columns.append((c, "held_out"))
+        header.append(f"{c['condition']}: trained (naive)")
+        columns.append((c, "trained"))
+    lines = ["| target (direction) | " + " | ".join(header) + " |", "|---|" + "---|" * len(header)]
+    for k, t in enumerate(conds[0]["targets"]):
+        cells = [f"{c[what]['per_target'][t]}/{n}" + (f" ({c['naive']['per_target'][t]}/{n})" if what == "trained"
+                                                      else "") for c, what in columns]
+        lines.append(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
+    for c, what in columns:
+        r = c[what]
+        median = r.get("median_targets_reached")
+        lines.append(f"\n{c['condition']}, {what.replace('_', '-')}: networks by number of targets reached "
+                     f"(0..{len(c['targets'])}): {r['targets_reached_per_network']}"
+                     + (f" (naive {c['naive']['targets_reached_per_network']})" if what == "trained" else "")
+                     + ("" if median is None else f"; median {median:g} of {len(c['targets'])} per network"))
     return "\n".join(lines)

@@ -295,3 +295,38 @@ def test_code_rate_scale_gives_the_spec_at_that_rate():
     intervals = np.asarray(proprio.set_target(fast, proprio.init_p(fast), direction, 40, 0.5).interval_steps)
     assert sorted(set(intervals[-64:].tolist())) == [80, proprio.NEVER_STEPS]
     assert (intervals[-64:] == 80).sum() == 8                # the 8 cells of the left group
+
+
+def test_summary_and_table_count_the_held_out_tests_and_the_median_network():
+    """summary() on hand-made test results (3 networks, 8 targets): counts per target, targets reached per network
+    and their median, for the trained, naive and held-out tests; the table shows the held-out column first."""
+    from types import SimpleNamespace
+
+    from jaxarm.run_centre_out import summary, table_markdown
+
+    task, spec = CentreOut(), with_target_code(NetworkSpec.dura_bernal_2015(), CentreOut())
+    n_pop = len(spec.network_populations)
+    history = SimpleNamespace(rates_last10s_hz=np.zeros((2, 3, n_pop)), mean_wgain=np.ones((2, 3, len(spec.pathways))),
+                              rewards=np.zeros((2, 3)), punishments=np.zeros((2, 3)),
+                              min_distance_m=np.full((2, 3), 0.1), lost_spikes=np.zeros((2, 3), int))
+
+    def result(success):
+        success = np.asarray(success, bool)
+        return SimpleNamespace(success=success, rates_hz=np.zeros((3, 8, n_pop)), lost_spikes=np.zeros((3, 8), int),
+                               min_distance_m=np.where(success, 0.03, 0.1), hand_m=np.zeros((3, 8, 2, 2)))
+
+    trained = [[1] * 8, [1] * 6 + [0] * 2, [1, 0, 0, 0, 0, 0, 0, 0]]           # 8, 6 and 1 targets
+    held_out = [[1] * 7 + [0], [0] * 8, [1, 1, 0, 0, 0, 0, 0, 0]]              # 7, 0 and 2 targets
+    r = summary(task, spec, [0, 1, 2], history, result(trained), result(np.zeros((3, 8))), result(held_out))
+    assert r["trained"]["median_targets_reached"] == 6 and r["held_out"]["median_targets_reached"] == 2
+    assert r["naive"]["median_targets_reached"] == 0
+    assert r["held_out"]["per_target"]["right"] == 2 and r["held_out"]["per_target"]["left-bottom"] == 0
+    assert r["trained"]["targets_reached_per_network"] == [0, 1, 0, 0, 0, 0, 1, 0, 1]
+    for k in ("trained", "naive", "held_out"):
+        r[k].pop("hand_m")
+    table = table_markdown({"conditions": {"target-code": {"condition": "target-code", **r}}})
+    assert table.splitlines()[0] == ("| target (direction) | target-code: held-out noise | target-code: trained (naive) "
+                                     "|")
+    assert table.splitlines()[2] == "| right (0 deg) | 2/3 | 3/3 (0/3) |"
+    assert "target-code, held-out: networks by number of targets reached (0..8): [1, 0, 1, 0, 0, 0, 0, 1, 0]; " \
+           "median 2 of 8 per network" in table

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from jaxarm import experiment
-from jaxarm.learning.metaparams import as_current
+from jaxarm.learning.metaparams import ORIGINAL, as_current
 
 PRESETS = Path(experiment.__file__).resolve().parent / "paper" / "presets"
 
@@ -19,7 +19,8 @@ def _train(argv, monkeypatch):
     caught = {}
 
     def train_targets(ap, args, configs, mp, record):
-        caught.update(mp=mp.to_dict(), epochs=[cfg.task.epochs for _, cfg, _task in configs])
+        caught.update(mp=mp.to_dict(), epochs=[cfg.task.epochs for _, cfg, _task in configs],
+                      networks=[cfg.network for _, cfg, _task in configs])
         return 0
 
     monkeypatch.setattr(experiment, "_train_targets", train_targets)
@@ -74,3 +75,32 @@ def test_bad_preset_or_index_is_one_line(tmp_path, monkeypatch, argv, says):
     lines = [ln for ln in err.splitlines() if not ln.startswith(("usage:", " "))]
     assert code == 2 and caught is None and len(lines) == 1, err
     assert re.search(says, lines[0]), lines[0]
+
+
+def test_a_preset_with_a_network_trains_it_unless_given_another(tmp_path, monkeypatch):
+    """A preset made from a search with --network carries that network (NetworkConfig's changed fields): it survives
+    the file, `jaxarm train --preset` trains it, --network replaces it, and a bad one is named in one line."""
+    from jaxarm.config.network import NetworkConfig
+    from jaxarm.config.spec import NetworkSpec
+    from jaxarm.config.validate import ConfigError
+    from jaxarm.paper import presets
+    from jaxarm.task.centre_out import CentreOut, with_target_code
+
+    coded = NetworkConfig(spec=with_target_code(NetworkSpec.dura_bernal_2015(), CentreOut(), pmat=0.4)
+                          .with_plastic({"T->EM"}))
+    preset = presets.Preset(name="coded", description="", arms=("simple",), best=ORIGINAL,
+                            network=coded.to_dict(changed_only=True))
+    path = presets.save(preset, tmp_path)
+    assert presets.load(str(path)).network_config() == coded
+    code, err, caught = _train(["--preset", str(path), "--task", "centre-out-8", "--out", str(tmp_path / "a")],
+                               monkeypatch)
+    assert code == 0, err
+    assert caught["networks"] == [coded]                 # the target code is the preset's: kept, not added again
+    other = tmp_path / "other.toml"
+    NetworkConfig().save(other)
+    code, err, caught = _train(["--preset", str(path), "--network", str(other), "--out", str(tmp_path / "b")],
+                               monkeypatch)
+    assert code == 0, err
+    assert caught["networks"][0].spec == NetworkSpec.dura_bernal_2015()
+    with pytest.raises(ConfigError, match="preset 'bad' network"):
+        presets.Preset(name="bad", description="", arms=("simple",), best=ORIGINAL, network={"populations": 5})

@@ -445,6 +445,8 @@ class NetworkSpec:
         parts = {}
         for key, item_cls in known.items():
             if key in data:
+                if not isinstance(data[key], (list, tuple)):
+                    raise ConfigError(f"{what} {key}: expected a list of tables, got {type(data[key]).__name__}")
                 parts[key] = tuple(_build(item_cls, row, f"{what} {key}[{i}]") for i, row in enumerate(data[key]))
         if "physics" in data:
             parts["physics"] = _build(SynapsePhysics, {**dataclasses.asdict(base.physics), **data["physics"]},

@@ -162,6 +162,12 @@ DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] 
 }
 
 
+#: What ``jaxarm reproduce --task centre-out-8 --arm ARM`` trains without ``--preset``: the arm's centre-out preset,
+#: whose sets and network (the target code, and which pathways learn) a search at the full protocol found
+#: (docs/centre-out.md); an arm without one trains the authors' set on the paper's network with the default code.
+CENTRE_OUT_PRESETS: dict[str, str] = {}
+
+
 def describe_protocol(plan: dict) -> str:
     """One line per target: which preset, epochs and --set each mode runs."""
     lines = []
@@ -470,7 +476,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "control without it, tested on every target (--epochs per target, default 3; "
                          "docs/centre-out.md)")
     ap.add_argument("--preset", help="preset name (see --list-presets) or the path of a preset .json file "
-                                     "(default: the arm's protocol of the README's headline numbers, which it prints)")
+                                     "(default: the arm's protocol of the README's headline numbers, which it prints; "
+                                     "--task centre-out-8: the arm's centre-out preset, "
+                                     + ", ".join(f"{v} on the {k} arm" for k, v in CENTRE_OUT_PRESETS.items())
+                                     + ", else the authors' set)")
     ap.add_argument("--out", type=runfolder.folder_argument,
                     help="output folder (a rerun resumes it; one command at a time, OUT/jaxarm.lock)")
     ap.add_argument("--targets", default=None,
@@ -531,6 +540,8 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         missing = [o for o, v in (("--arm", args.arm), ("--out", args.out)) if v is None]
         if missing:
             ap.error(f"{', '.join(missing)} required (or --list-presets / --make-preset)")
+        if args.preset is None and args.task == "centre-out-8":
+            args.preset = CENTRE_OUT_PRESETS.get(args.arm)
         preset = None if args.preset is None else preset_lib.load(args.preset, args.preset_dir)
         if args.task == "centre-out-8":
             return _reproduce_centre_out(args, preset, argv)
@@ -539,7 +550,7 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         from jaxarm.run import network_config as network_config_of
 
         overrides = _parse_overrides(args.overrides)
-        network = network_config_of(args)
+        network = network_config_of(args, None if preset is None else preset.network_config())
         with runfolder.claim(args.out, "jaxarm reproduce"):
             table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
                               overrides=overrides,
@@ -570,7 +581,7 @@ def _reproduce_centre_out(args, preset, argv) -> int:
                           "backend (no --targets, --top, --backend)")
     task = CentreOut(epochs_per_target=3 if args.epochs is None else args.epochs, epoch_duration_s=args.epoch_s,
                      test_duration_s=args.test_s)
-    net = network_config_of(args)
+    net = network_config_of(args, None if preset is None else preset.network_config())
     if args.dt_ms is not None:
         net = dataclasses.replace(net, dt_ms=args.dt_ms)
     mp = MetaParams.from_dict({**(preset.best if preset is not None else {}), **_parse_overrides(args.overrides)})

@@ -10,7 +10,11 @@ A preset is a JSON file ``jaxarm/paper/presets/NAME.json`` (shipped with the pac
 * ``provenance``: the command, search seed, cost (wall time, evaluations, network-seconds) and date that produced
   it;
 * ``protocol`` (optional): ``{"epochs", "why"}``, the training length its published numbers used (without one,
-  the paper's 12 epochs).
+  the paper's 12 epochs);
+* ``network`` (optional): the network its sets were found for, as the fields that differ from the paper's
+  (``NetworkConfig.to_dict(changed_only=True)``, what ``jaxarm evolve --network`` records); ``jaxarm train`` and
+  ``jaxarm reproduce`` with the preset train that network unless given ``--network``. A search made with
+  ``--network`` passes it on to its preset.
 
 Sets saved before ``epochs`` and ``max_w_scaling`` left the metaparameters (:data:`~jaxarm.learning.metaparams.RETIRED`)
 load unchanged: ``max_w_scaling`` is dropped, and the sets' ``epochs`` becomes the protocol of a preset that has none.
@@ -47,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxarm.arm.registry import ARMS
+from jaxarm.config.network import NetworkConfig
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import BOUNDS, NAMES, ORIGINAL, MetaParams, as_current
 
@@ -78,6 +83,8 @@ class Preset:
     #: The protocol of the preset's published numbers, used by `jaxarm reproduce` unless told otherwise:
     #: ``{"epochs": E, "why": "..."}`` (None: the paper's 12 epochs).
     protocol: dict | None = None
+    #: The network its sets were found for: NetworkConfig fields that differ from the paper's (None: the paper's).
+    network: dict | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not _NAME_RE.match(self.name):
@@ -103,6 +110,10 @@ class Preset:
         object.__setattr__(self, "top", tuple(rows))
         if self.targets is not None:
             object.__setattr__(self, "targets", tuple(self.targets))
+        if self.network is not None:
+            if not isinstance(self.network, dict):
+                raise ConfigError(f"preset {self.name!r} network: must be an object of NetworkConfig fields")
+            NetworkConfig.from_dict(self.network, what=f"preset {self.name!r} network")   # validated, named
         if self.protocol is not None:
             ep = self.protocol.get("epochs") if isinstance(self.protocol, dict) else None
             if set(self.protocol or {}) - {"epochs", "why"} or isinstance(ep, bool) or not isinstance(ep, int) \
@@ -115,6 +126,10 @@ class Preset:
     def epochs(self) -> int:
         """The training length of the preset's published numbers: its protocol's, else the paper's."""
         return self.protocol["epochs"] if self.protocol is not None else PAPER_EPOCHS
+
+    def network_config(self) -> NetworkConfig | None:
+        """The network the preset's sets were found for, or None for the paper's."""
+        return None if self.network is None else NetworkConfig.from_dict(self.network)
 
     def best_metaparams(self) -> MetaParams:
         return MetaParams.from_dict(self.best)
@@ -129,6 +144,8 @@ class Preset:
             d["targets"] = list(self.targets)
         if self.protocol is not None:
             d["protocol"] = self.protocol
+        if self.network is not None:
+            d["network"] = self.network
         d.update(best=self.best, top=list(self.top), provenance=self.provenance)
         return d
 
@@ -136,7 +153,7 @@ class Preset:
     def from_json(cls, d: dict, where: str = "preset") -> "Preset":
         if not isinstance(d, dict):
             raise ConfigError(f"{where}: a preset file holds one JSON object")
-        known = {"name", "description", "arms", "targets", "protocol", "best", "top", "provenance"}
+        known = {"name", "description", "arms", "targets", "protocol", "network", "best", "top", "provenance"}
         unknown = sorted(set(d) - known)
         missing = [k for k in ("name", "arms", "best") if k not in d]
         if unknown or missing:
@@ -145,7 +162,7 @@ class Preset:
                 + f" (keys: {', '.join(sorted(known))})")
         return cls(name=d["name"], description=d.get("description", ""), arms=tuple(d["arms"]), best=d["best"],
                    top=tuple(d.get("top") or ()), provenance=d.get("provenance") or {}, targets=d.get("targets"),
-                   protocol=d.get("protocol"))
+                   protocol=d.get("protocol"), network=d.get("network"))
 
 
 def _protocol_of_old_sets(name: str, best, top) -> dict | None:
@@ -369,4 +386,4 @@ def from_search(search_dir: str | Path, name: str, description: str | None = Non
     protocol = None if epochs is None else {"epochs": int(epochs), "why": f"the search trained {epochs} epochs"}
     return Preset(name=name, description=description, arms=arms,
                   best=rows[0]["metaparams"], top=tuple(top), provenance=provenance,
-                  targets=tuple(targets) if targets else None, protocol=protocol)
+                  targets=tuple(targets) if targets else None, protocol=protocol, network=fit.get("network"))
