@@ -234,8 +234,9 @@ def run_with_control(config, task: CentreOut, seeds, mp, out, *, conditions=COND
 
 def table_markdown(result: dict) -> str:
     """The per-target table of :func:`run_with_control`'s result: per condition, the trained networks' counts on
-    held-out noise (when measured), on their training noise and the naive networks'; then the networks by number
-    of targets reached, and the median number per network."""
+    held-out noise (when measured), on their training noise and the naive networks'; the first condition's median
+    closest approach per target; then the networks by number of targets reached, and the median number per
+    network."""
     conds = list(result["conditions"].values())
     n = len(conds[0]["seeds"])
     header, columns = [], []
@@ -245,10 +246,13 @@ def table_markdown(result: dict) -> str:
             columns.append((c, "held_out"))
         header.append(f"{c['condition']}: trained (naive)")
         columns.append((c, "trained"))
+    header.append(f"{conds[0]['condition']}: median closest approach, cm, trained (naive)")
     lines = ["| target (direction) | " + " | ".join(header) + " |", "|---|" + "---|" * len(header)]
     for k, t in enumerate(conds[0]["targets"]):
         cells = [f"{c[what]['per_target'][t]}/{n}" + (f" ({c['naive']['per_target'][t]}/{n})" if what == "trained"
                                                       else "") for c, what in columns]
+        cells.append(f"{conds[0]['trained']['median_min_distance_cm'][t]:.1f} "
+                     f"({conds[0]['naive']['median_min_distance_cm'][t]:.1f})")
         lines.append(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
     for c, what in columns:
         r = c[what]

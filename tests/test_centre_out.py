@@ -326,7 +326,7 @@ def test_summary_and_table_count_the_held_out_tests_and_the_median_network():
         r[k].pop("hand_m")
     table = table_markdown({"conditions": {"target-code": {"condition": "target-code", **r}}})
     assert table.splitlines()[0] == ("| target (direction) | target-code: held-out noise | target-code: trained (naive) "
-                                     "|")
-    assert table.splitlines()[2] == "| right (0 deg) | 2/3 | 3/3 (0/3) |"
+                                     "| target-code: median closest approach, cm, trained (naive) |")
+    assert table.splitlines()[2] == "| right (0 deg) | 2/3 | 3/3 (0/3) | 3.0 (10.0) |"
     assert "target-code, held-out: networks by number of targets reached (0..8): [1, 0, 1, 0, 0, 0, 0, 1, 0]; " \
            "median 2 of 8 per network" in table
