@@ -79,6 +79,24 @@ def _per_network(x) -> np.ndarray:
     return np.ascontiguousarray(np.swapaxes(np.asarray(x), 0, 1))
 
 
+def _approach(task: CentreOut, result) -> dict:
+    """Where each test's hand went, per target (medians over networks): how far from the start it was at its closest
+    approach to the target (``median_travel_cm``) and the angle between that displacement and the target's
+    direction (``median_direction_error_deg``, 0 = straight at it): a hand that moves little and one that moves the
+    wrong way miss a target for different reasons."""
+    hand = np.asarray(result.hand_m, np.float64)                              # (networks, targets, samples, 2)
+    start = np.asarray(task.task_config().start_xy_m, np.float64)
+    goal = np.asarray(task.stacked_targets().xy_m, np.float64) - start       # (targets, 2)
+    closest = np.argmin(np.linalg.norm(hand - (goal + start)[None, :, None], axis=-1), axis=-1)
+    moved = np.take_along_axis(hand, closest[..., None, None], axis=2)[:, :, 0] - start   # (networks, targets, 2)
+    travel = np.linalg.norm(moved, axis=-1)
+    angle = np.degrees(np.abs(np.arctan2(moved[..., 1] * goal[:, 0] - moved[..., 0] * goal[:, 1],
+                                         moved[..., 0] * goal[:, 0] + moved[..., 1] * goal[:, 1])))
+    return {"median_travel_cm": {t: round(100 * float(np.median(travel[:, k])), 2) for k, t in enumerate(task.targets)},
+            "median_direction_error_deg": {t: round(float(np.median(angle[:, k])), 1)
+                                           for k, t in enumerate(task.targets)}}
+
+
 def summary(task: CentreOut, spec, seeds, history, res, naive, held_out=None) -> dict:
     """The task's results from host arrays (``history`` (epochs, networks, ...) as :meth:`jaxarm.run.Runner.train`
     returns it; ``res``, ``naive``: TestResults (networks, targets, ...)): success per (network, target), counts per
@@ -109,6 +127,7 @@ def summary(task: CentreOut, spec, seeds, history, res, naive, held_out=None) ->
                      "median_targets_reached": float(np.median(ok.sum(axis=1))),
                      "median_min_distance_cm": {t: round(100 * float(np.median(np.asarray(r.min_distance_m)[:, k])), 2)
                                                 for k, t in enumerate(task.targets)},
+                     **_approach(task, r),
                      "hand_m": np.asarray(r.hand_m)}
     return out
 
@@ -247,12 +266,18 @@ def table_markdown(result: dict) -> str:
         header.append(f"{c['condition']}: trained (naive)")
         columns.append((c, "trained"))
     header.append(f"{conds[0]['condition']}: median closest approach, cm, trained (naive)")
+    header.append(f"{conds[0]['condition']}: median travel, cm, and direction error, deg, at the closest approach, "
+                  "trained")
     lines = ["| target (direction) | " + " | ".join(header) + " |", "|---|" + "---|" * len(header)]
     for k, t in enumerate(conds[0]["targets"]):
         cells = [f"{c[what]['per_target'][t]}/{n}" + (f" ({c['naive']['per_target'][t]}/{n})" if what == "trained"
                                                       else "") for c, what in columns]
-        cells.append(f"{conds[0]['trained']['median_min_distance_cm'][t]:.1f} "
-                     f"({conds[0]['naive']['median_min_distance_cm'][t]:.1f})")
+        first = conds[0]
+        cells.append(f"{first['trained']['median_min_distance_cm'][t]:.1f} "
+                     f"({first['naive']['median_min_distance_cm'][t]:.1f})")
+        cells.append(f"{first['trained']['median_travel_cm'][t]:.1f}, "
+                     f"{first['trained']['median_direction_error_deg'][t]:.0f}"
+                     if "median_travel_cm" in first["trained"] else "")
         lines.append(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
     for c, what in columns:
         r = c[what]

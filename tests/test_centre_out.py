@@ -310,14 +310,24 @@ def test_summary_and_table_count_the_held_out_tests_and_the_median_network():
                               rewards=np.zeros((2, 3)), punishments=np.zeros((2, 3)),
                               min_distance_m=np.full((2, 3), 0.1), lost_spikes=np.zeros((2, 3), int))
 
-    def result(success):
+    start = np.asarray(task.task_config().start_xy_m)
+    goal = np.asarray(task.stacked_targets().xy_m) - start                       # (8, 2), 15.1 cm each
+
+    def result(success, turn_deg=0.0):
+        """Every hand moves from the start half-way to its target, its path turned by ``turn_deg``."""
         success = np.asarray(success, bool)
+        c, s_ = np.cos(np.radians(turn_deg)), np.sin(np.radians(turn_deg))
+        step = 0.5 * goal @ np.array([[c, s_], [-s_, c]])
+        hand = np.broadcast_to(np.stack([start + 0 * step, start + step], axis=1), (3, 8, 2, 2))
         return SimpleNamespace(success=success, rates_hz=np.zeros((3, 8, n_pop)), lost_spikes=np.zeros((3, 8), int),
-                               min_distance_m=np.where(success, 0.03, 0.1), hand_m=np.zeros((3, 8, 2, 2)))
+                               min_distance_m=np.where(success, 0.03, 0.1), hand_m=hand)
 
     trained = [[1] * 8, [1] * 6 + [0] * 2, [1, 0, 0, 0, 0, 0, 0, 0]]           # 8, 6 and 1 targets
     held_out = [[1] * 7 + [0], [0] * 8, [1, 1, 0, 0, 0, 0, 0, 0]]              # 7, 0 and 2 targets
-    r = summary(task, spec, [0, 1, 2], history, result(trained), result(np.zeros((3, 8))), result(held_out))
+    r = summary(task, spec, [0, 1, 2], history, result(trained), result(np.zeros((3, 8))), result(held_out, 45.0))
+    assert r["trained"]["median_travel_cm"]["top"] == pytest.approx(7.55, abs=0.01)     # half of 15.1 cm
+    assert r["trained"]["median_direction_error_deg"]["top"] == 0.0
+    assert r["held_out"]["median_direction_error_deg"]["left"] == pytest.approx(45.0)
     assert r["trained"]["median_targets_reached"] == 6 and r["held_out"]["median_targets_reached"] == 2
     assert r["naive"]["median_targets_reached"] == 0
     assert r["held_out"]["per_target"]["right"] == 2 and r["held_out"]["per_target"]["left-bottom"] == 0
@@ -326,7 +336,8 @@ def test_summary_and_table_count_the_held_out_tests_and_the_median_network():
         r[k].pop("hand_m")
     table = table_markdown({"conditions": {"target-code": {"condition": "target-code", **r}}})
     assert table.splitlines()[0] == ("| target (direction) | target-code: held-out noise | target-code: trained (naive) "
-                                     "| target-code: median closest approach, cm, trained (naive) |")
-    assert table.splitlines()[2] == "| right (0 deg) | 2/3 | 3/3 (0/3) | 3.0 (10.0) |"
+                                     "| target-code: median closest approach, cm, trained (naive) | target-code: median "
+                                     "travel, cm, and direction error, deg, at the closest approach, trained |")
+    assert table.splitlines()[2] == "| right (0 deg) | 2/3 | 3/3 (0/3) | 3.0 (10.0) | 7.6, 0 |"
     assert "target-code, held-out: networks by number of targets reached (0..8): [1, 0, 1, 0, 0, 0, 0, 1, 0]; " \
            "median 2 of 8 per network" in table
