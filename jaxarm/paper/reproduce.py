@@ -165,7 +165,7 @@ DEFAULT_PROTOCOL: dict[str, dict[str, dict[str, tuple[str, int | None, dict]]]] 
 #: What ``jaxarm reproduce --task centre-out-8 --arm ARM`` trains without ``--preset``: the arm's centre-out preset,
 #: whose sets and network (the target code, and which pathways learn) a search at the full protocol found
 #: (docs/centre-out.md); an arm without one trains the authors' set on the paper's network with the default code.
-CENTRE_OUT_PRESETS: dict[str, str] = {}
+CENTRE_OUT_PRESETS: dict[str, str] = {"simple": "simple-centre-out-code"}
 
 
 def describe_protocol(plan: dict) -> str:
