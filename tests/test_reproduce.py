@@ -227,10 +227,15 @@ def test_every_shipped_preset_loads_and_is_within_bounds():
 
     names = presets.available(archive=True)
     assert list(names)[0] == "original"
-    # the README's presets sit in the package folder, the other searches' in archive/, loadable by name
+    # the README's presets and the centre-out default sit in the package folder, the other searches' in archive/,
+    # loadable by name
     assert set(presets.available()) == {"original", "msarm-cmaes-2cm-rerank", "msarm-rerank-bottom-stay",
                                         "simple-rerank-left-32", "simple-rerank-bottom-24",
-                                        "simple-cmaes-left-shoulder"}
+                                        "simple-cmaes-left-shoulder", "simple-centre-out-code"}
+    from jaxarm.paper.reproduce import CENTRE_OUT_PRESETS
+    for arm, name in CENTRE_OUT_PRESETS.items():      # the centre-out default carries its network, with a code
+        preset = presets.load(name)
+        assert arm in preset.arms and preset.network_config().spec.target_codes == ("T",)
     assert "simple-fixedseed-left" in names and presets.load("simple-fixedseed-left").name == "simple-fixedseed-left"
     assert {"simple-cmaes-left-fixed", "simple-cmaes-shortfall-long", "simple-cmaes-bottom-local",
             "simple-cmaes-left-local", "simple-cmaes-bottom-fixed", "msarm-rerank-left-stay", "simple-rerank-left",
