@@ -295,6 +295,10 @@ def test_code_rate_scale_gives_the_spec_at_that_rate():
     intervals = np.asarray(proprio.set_target(fast, proprio.init_p(fast), direction, 40, 0.5).interval_steps)
     assert sorted(set(intervals[-64:].tolist())) == [80, proprio.NEVER_STEPS]
     assert (intervals[-64:] == 80).sum() == 8                # the 8 cells of the left group
+    clipped = [np.asarray(proprio.set_target(fast, proprio.init_p(fast), direction, 40, s).interval_steps)
+               for s in (3.0, proprio.MAX_CODE_RATE_SCALE)]  # above the bound the P window would drop spikes
+    np.testing.assert_array_equal(clipped[0], clipped[1])
+    assert sorted(set(clipped[0][-64:].tolist())) == [20, proprio.NEVER_STEPS]     # 200 Hz: 5 ms
 
 
 def test_summary_and_table_count_the_held_out_tests_and_the_median_network():

@@ -111,10 +111,15 @@ def target_group(config: NetworkConfig, population: str, direction_rad):
     return jnp.round(jnp.asarray(direction_rad, jnp.float32) * (groups / (2.0 * np.pi))).astype(jnp.int32) % groups
 
 
+#: The highest ``rate_scale`` :func:`set_target` is given (``MetaParams.code_rate_scale``'s upper bound): the P
+#: window's delivery loop is sized for the shortest interval a train can have.
+MAX_CODE_RATE_SCALE = 2.0
+
+
 def set_target(config: NetworkConfig, p: PState, direction_rad, step, rate_scale=1.0) -> PState:
     """Switch every target code to the direction ``direction_rad`` (rad) at clock step ``step``: the cells of the
     nearest direction group fire at the population's ``rate_hz`` times ``rate_scale`` (a traced metaparameter,
-    ``MetaParams.code_rate_scale``, at most :data:`MAX_CODE_RATE_SCALE`), the others fall silent. A no-op without
+    ``MetaParams.code_rate_scale``, clipped to :data:`MAX_CODE_RATE_SCALE`), the others fall silent. A no-op without
     target codes (the paper's network)."""
     pops = Populations(config)
     for name in config.spec.target_codes:
@@ -125,17 +130,13 @@ def set_target(config: NetworkConfig, p: PState, direction_rad, step, rate_scale
         interval = max(1, config.steps(1000.0 / pop.rate_hz))
         if not (isinstance(rate_scale, (int, float)) and rate_scale == 1.0):
             # the spec's own interval at scale 1 (as rounded in Python), so an unscaled code keeps its bits
-            scaled = jnp.maximum(1, jnp.round(1000.0 / (pop.rate_hz * jnp.asarray(rate_scale, jnp.float32))
-                                              / config.dt_ms)).astype(jnp.int32)
+            # above MAX_CODE_RATE_SCALE the XLA kernel's P window would drop spikes: clipped, as the bounds do
+            scale = jnp.minimum(jnp.asarray(rate_scale, jnp.float32), MAX_CODE_RATE_SCALE)
+            scaled = jnp.maximum(1, jnp.round(1000.0 / (pop.rate_hz * scale) / config.dt_ms)).astype(jnp.int32)
             interval = jnp.where(jnp.asarray(rate_scale) == 1.0, interval, scaled)
         interval = jnp.where(on, interval, NEVER_STEPS).astype(jnp.int32)
         p = _retime(p, interval, step, cells)
     return p
-
-
-#: The highest ``rate_scale`` :func:`set_target` is given (``MetaParams.code_rate_scale``'s upper bound): the P
-#: window's delivery loop is sized for the shortest interval a train can have.
-MAX_CODE_RATE_SCALE = 2.0
 
 
 def target_code_wiring(config: NetworkConfig, wiring, weight_scale, density_scale):
