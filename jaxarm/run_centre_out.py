@@ -87,7 +87,7 @@ def _approach(task: CentreOut, result) -> dict:
     hand = np.asarray(result.hand_m, np.float64)                              # (networks, targets, samples, 2)
     start = np.asarray(task.task_config().start_xy_m, np.float64)
     goal = np.asarray(task.stacked_targets().xy_m, np.float64) - start       # (targets, 2)
-    closest = np.argmin(np.linalg.norm(hand - (goal + start)[None, :, None], axis=-1), axis=-1)
+    closest = np.argmin(np.asarray(result.distance_m), axis=-1)              # (networks, targets)
     moved = np.take_along_axis(hand, closest[..., None, None], axis=2)[:, :, 0] - start   # (networks, targets, 2)
     travel = np.linalg.norm(moved, axis=-1)
     angle = np.degrees(np.abs(np.arctan2(moved[..., 1] * goal[:, 0] - moved[..., 0] * goal[:, 1],
@@ -269,16 +269,16 @@ def table_markdown(result: dict) -> str:
     header.append(f"{conds[0]['condition']}: median travel, cm, and direction error, deg, at the closest approach, "
                   "trained")
     lines = ["| target (direction) | " + " | ".join(header) + " |", "|---|" + "---|" * len(header)]
-    for k, t in enumerate(conds[0]["targets"]):
+    first = conds[0]
+    for k, t in enumerate(first["targets"]):
         cells = [f"{c[what]['per_target'][t]}/{n}" + (f" ({c['naive']['per_target'][t]}/{n})" if what == "trained"
                                                       else "") for c, what in columns]
-        first = conds[0]
         cells.append(f"{first['trained']['median_min_distance_cm'][t]:.1f} "
                      f"({first['naive']['median_min_distance_cm'][t]:.1f})")
         cells.append(f"{first['trained']['median_travel_cm'][t]:.1f}, "
                      f"{first['trained']['median_direction_error_deg'][t]:.0f}"
                      if "median_travel_cm" in first["trained"] else "")
-        lines.append(f"| {t} ({conds[0]['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
+        lines.append(f"| {t} ({first['directions_deg'][k]:g} deg) | " + " | ".join(cells) + " |")
     for c, what in columns:
         r = c[what]
         median = r.get("median_targets_reached")

@@ -324,7 +324,8 @@ def test_summary_and_table_count_the_held_out_tests_and_the_median_network():
         step = 0.5 * goal @ np.array([[c, s_], [-s_, c]])
         hand = np.broadcast_to(np.stack([start + 0 * step, start + step], axis=1), (3, 8, 2, 2))
         return SimpleNamespace(success=success, rates_hz=np.zeros((3, 8, n_pop)), lost_spikes=np.zeros((3, 8), int),
-                               min_distance_m=np.where(success, 0.03, 0.1), hand_m=hand)
+                               min_distance_m=np.where(success, 0.03, 0.1), hand_m=hand,
+                               distance_m=np.linalg.norm(hand - (start + goal)[:, None], axis=-1))
 
     trained = [[1] * 8, [1] * 6 + [0] * 2, [1, 0, 0, 0, 0, 0, 0, 0]]           # 8, 6 and 1 targets
     held_out = [[1] * 7 + [0], [0] * 8, [1, 1, 0, 0, 0, 0, 0, 0]]              # 7, 0 and 2 targets

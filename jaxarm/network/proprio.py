@@ -127,13 +127,11 @@ def set_target(config: NetworkConfig, p: PState, direction_rad, step, rate_scale
         cells = slice(pops.start[name] - config.n_cells, pops.stop[name] - config.n_cells)
         group = jnp.asarray(pops.target_groups(name))
         on = group == target_group(config, name, direction_rad)
-        interval = max(1, config.steps(1000.0 / pop.rate_hz))
-        if not (isinstance(rate_scale, (int, float)) and rate_scale == 1.0):
-            # the spec's own interval at scale 1 (as rounded in Python), so an unscaled code keeps its bits
-            # above MAX_CODE_RATE_SCALE the XLA kernel's P window would drop spikes: clipped, as the bounds do
-            scale = jnp.minimum(jnp.asarray(rate_scale, jnp.float32), MAX_CODE_RATE_SCALE)
-            scaled = jnp.maximum(1, jnp.round(1000.0 / (pop.rate_hz * scale) / config.dt_ms)).astype(jnp.int32)
-            interval = jnp.where(jnp.asarray(rate_scale) == 1.0, interval, scaled)
+        # above MAX_CODE_RATE_SCALE the XLA kernel's P window would drop spikes: clipped, as the bounds do
+        scale = jnp.minimum(jnp.asarray(rate_scale, jnp.float32), MAX_CODE_RATE_SCALE)
+        scaled = jnp.maximum(1, jnp.round(1000.0 / (pop.rate_hz * scale) / config.dt_ms)).astype(jnp.int32)
+        # at scale 1 the spec's own interval (rounded in Python, float64), so an unscaled code keeps its bits
+        interval = jnp.where(scale == 1.0, max(1, config.steps(1000.0 / pop.rate_hz)), scaled)
         interval = jnp.where(on, interval, NEVER_STEPS).astype(jnp.int32)
         p = _retime(p, interval, step, cells)
     return p
