@@ -83,6 +83,24 @@ def test_shared_wiring_nested_vmap_and_unbatched_state():
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+@needs_native
+def test_cells_beyond_whole_blocks_match_xla():
+    """The kernel updates the cells in blocks of eight and the rest one at a time: 509 cells (IS has 41) leave five
+    after the last block; both kinds of update and the receptors' block lists give XLA's spikes for 250 ms."""
+    base = NetworkConfig()
+    spec = base.spec.with_sizes((192, 41, 20, 192, 44, 20, 192))
+    nx, nn = pair(spec=spec)
+    assert nn.config.n_cells % 8 == 5
+    keys = jax.random.split(jax.random.key(11), 2)
+    wirings = jax.vmap(nx.make_wiring)(keys)
+    s0 = jax.vmap(lambda k: start(nx, k))(keys)
+    sx, spx = jax.jit(jax.vmap(lambda w, s: nx.run(w, s, PARAMS, 1000)))(wirings, s0)
+    sn, spn = jax.jit(jax.vmap(lambda w, s: nn.run(w, s, PARAMS, 1000)))(wirings, s0)
+    np.testing.assert_array_equal(np.asarray(spx), np.asarray(spn))
+    assert int(np.asarray(spn)[:, :, 504:509].sum()) > 0, "the cells after the last block should fire"
+    assert_states_close(sx, sn)
+
+
 @pytest.mark.slow  # moved to the slow suite: the default suite's 8-minute budget on CI
 @needs_native
 def test_paths_can_hand_a_state_over_mid_run():

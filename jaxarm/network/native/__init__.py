@@ -118,7 +118,8 @@ _PROFILE = {"on": False}
 _LIBS: dict = {}   # profile build? -> the loaded library
 #: Phases of the profiling build's timers (chunk_kernel.cc, namespace prof), in its order.
 PROFILE_PHASES = ("copy_in", "p_window", "noise", "cells", "spike_bookkeeping", "delivery", "tags")
-PROFILE_COUNTERS = ("spikes", "synapse_events", "tag_checks", "steps")
+PROFILE_COUNTERS = ("spikes", "synapse_events", "tag_checks", "steps", "cell_blocks", "blocks_ampa", "blocks_nmda",
+                    "blocks_gaba_prox", "blocks_gaba_dist")
 
 
 @functools.lru_cache(maxsize=None)
