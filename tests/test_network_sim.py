@@ -165,3 +165,15 @@ def test_no_overflow_in_10_s_of_30_networks(net):
     state = run(wirings, keys[30:], rates)
     assert int(np.sum(wirings.out_overflow)) == 0
     assert int(np.sum(state.counters.lost_spikes)) == 0
+
+
+def test_ring_holds_the_longest_delay():
+    """A spike's input lands in ring slot (step + delay) % n_slots: a pathway delay of n_slots steps or more would
+    arrive early (a 20-30 ms pathway once landed 8 ms early in a 44-slot ring). The paper's network keeps its 44
+    slots (a 10 ms chunk of 40 steps plus P's 1 ms delay; its longest delay, 5 ms, fits)."""
+    config = NetworkConfig()
+    assert Network(config).n_slots == 44
+    pathways = list(config.spec.pathways)
+    pathways[0] = dataclasses.replace(pathways[0], delay_ms=(20.0, 30.0))
+    long = Network(NetworkConfig(spec=dataclasses.replace(config.spec, pathways=tuple(pathways))))
+    assert long.n_slots == long.config.steps(30.0) + 1 == 121

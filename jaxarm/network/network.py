@@ -118,8 +118,11 @@ class Network:
 
     @cached_property
     def n_slots(self) -> int:
-        """Ring-buffer slots: enough for the longest delay (5 ms) and for a chunk of P input plus its delay."""
-        return max(self.config.steps(5.0) + 1, self.chunk_steps + self.p_delay_steps)
+        """Ring-buffer slots: enough for the longest delay of any pathway (at least 5 ms) and for a chunk of P input
+        plus its delay. A spike's input lands in slot (step + delay) % n_slots, so a delay of n_slots steps or more
+        would arrive early."""
+        longest = max(self.config.steps(pw.delay_ms[1]) for pw in self.layout.pathways)
+        return max(max(self.config.steps(5.0), longest) + 1, self.chunk_steps + self.p_delay_steps)
 
     @cached_property
     def max_passes(self) -> int:
