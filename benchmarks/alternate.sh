@@ -2,7 +2,8 @@
 # Alternate the network and training benchmarks between another tree and this one, in one sitting:
 #   benchmarks/alternate.sh BEFORE_DIR OUT_DIR [ROUNDS]
 # BEFORE_DIR: a checkout of the commit to compare with (git worktree add /tmp/before COMMIT). Each round runs
-# benchmarks/network.py and benchmarks/train.py (60 networks, one thread) on BEFORE_DIR, then on this tree, each
+# benchmarks/network.py (1 and 64 networks) and benchmarks/train.py (60 networks, both arms), one thread, on
+# BEFORE_DIR, then on this tree, each
 # with PYTHONPATH pointing at its own tree and this tree's Python. Writes OUT_DIR/{net,train}-{before,now}-R.json
 # and prints the medians over the rounds and their ratio now / before.
 set -euo pipefail
@@ -12,7 +13,7 @@ mkdir -p "$out"
 for r in $(seq 1 "$rounds"); do
   for side in before now; do
     if [ $side = before ]; then dir=$before; else dir=$now; fi
-    (cd "$dir" && PYTHONPATH=$dir "$py" benchmarks/network.py --networks 60 --repeats 3 --no-brian2 --threads 1 \
+    (cd "$dir" && PYTHONPATH=$dir "$py" benchmarks/network.py --networks 1,64 --repeats 3 --no-brian2 --threads 1 \
         --json > "$out/net-$side-$r.json")
     (cd "$dir" && PYTHONPATH=$dir "$py" benchmarks/train.py --networks 60 --seconds 2 --repeats 3 --threads 1 \
         --json > "$out/train-$side-$r.json")
@@ -22,7 +23,7 @@ done
 "$py" - "$out" <<'PY'
 import glob, json, statistics, sys
 out = sys.argv[1]
-for bench, keys in (("net", ["60"]), ("train", ["simple_60", "musculoskeletal_60"])):
+for bench, keys in (("net", ["1", "64"]), ("train", ["simple_60", "musculoskeletal_60"])):
     for k in keys:
         med = {s: statistics.median(json.load(open(f))["network_s_per_s"][k]
                                     for f in glob.glob(f"{out}/{bench}-{s}-*.json")) for s in ("before", "now")}

@@ -256,6 +256,7 @@ struct Attrs {
   // NetworkSpec.physics, mV and 1/mV
   float e_ampa, e_nmda, e_gaba, mg, mg0, mg_slope, vm_min, vm_max, max_jump_fraction;
   int64_t delay_bits;
+  bool batched;   // more than one network in this call
 };
 
 template <typename T>
@@ -687,6 +688,12 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     // meanwhile, every delay being at least one step and shorter than the ring)
     const int64_t m_slot = int64_t(m) % n_slots;
     float* __restrict__ inb = ring + m_slot * width;
+    if (a.batched) {   // the next step's slot on its way into the cache while this step runs: in a batch, a
+                       // network's ring has left the cache since its last chunk (alone, it stays; prefetching it
+                       // there measured 3 % slower)
+      const char* next = reinterpret_cast<const char*>(ring + (m_slot + 1 == n_slots ? 0 : m_slot + 1) * width);
+      for (int64_t b = 0; b < int64_t(sizeof(float)) * width; b += 64) __builtin_prefetch(next + b, 1, 3);
+    }
     // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs
     add_noise(n, kmax, hash32(uint32_t(m) * kGolden + step_seed), lane_key, thr, noise_w, events_left, limited, inb,
               ub, noise_blocks.data());
@@ -824,6 +831,7 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
   for (int64_t g = 0; g < n_groups; ++g) a.exc[g] = excitatory[g];
   int64_t total = 1;
   for (int64_t b : batch) total *= b;
+  a.batched = total > 1;
 
   auto work = [&](int64_t lo, int64_t hi) {
     std::vector<int64_t> idx(batch_rank);
