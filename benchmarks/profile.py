@@ -16,8 +16,9 @@ from the training state of networks 0..N-1 (the authors' metaparameters, babblin
 * ``readout``: the EM window and excitations alone;
 * the native kernel's phases inside ``test``, from its profiling build (``jaxarm.network.native.enable_profiling``:
   the same kernel with phase timers; its overhead is printed): copy-in and set-up, the generators' (P) input,
-  noise draws, the cells' update (decay, input jumps and threshold test: one pass since 2026-12-05, three phases
-  before), spike bookkeeping (spike times, counts, P trains), delivery, plasticity tags;
+  noise draws, the cells' update (decay, input jumps and threshold test: one phase since 2026-12-05, three phases
+  before), spike bookkeeping (spike times, counts, P trains), delivery, plasticity tags; and, per run, the share of
+  the blocks of eight cells with input at each receptor (``block_input_share``);
 * ``XLA between kernel calls`` = test - kernel - arm - readout (state plumbing, P code update, the loop's scans);
 * ``host round trip``: one call of a compiled epoch function from Python per epoch (30 s), measured on an empty
   jitted call.
@@ -42,6 +43,8 @@ import time  # noqa: E402
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+
+from profile_table import table  # noqa: E402  (benchmarks/profile_table.py, beside this script)
 
 EPOCH_S = 30.0
 
@@ -165,30 +168,24 @@ def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
             "events_per_network_s": {k: round(v, 1) for k, v in events.items()}}
 
 
-ROWS = ["train", "learning", "test", "kernel", "kernel: copy_in", "kernel: p_window", "kernel: noise",
-        "kernel: cell_decay", "kernel: jumps", "kernel: threshold", "kernel: cells", "kernel: spike_bookkeeping",
-        "kernel: delivery", "kernel: tags", "arm", "arm skeleton", "arm muscles", "readout", "XLA between kernel calls",
-        "host round trip", "profiled test (timer overhead)"]
+def by_run(results: list[dict]) -> dict:
+    """The runs' milliseconds per network-second by "ARM N", the kernel's phases as "kernel_PHASE" (so a page can
+    name one: docs/hooks.py takes dict paths without colons)."""
+    return {f"{r['arm']} {r['networks']}": {k.replace("kernel: ", "kernel_"): v for k, v in r["ms_per_network_s"].items()}
+            for r in results}
 
 
-def table(results: list[dict]) -> str:
-    head = "| part (ms per network-second) | " + " | ".join(
-        f"{r['arm']}, {r['networks']} net." for r in results) + " |"
-    lines = [head, "|---|" + "---|" * len(results)]
-    for row in ROWS:
-        cells = []
-        for r in results:
-            v = r["ms_per_network_s"].get(row)
-            if v is None:
-                cells.append("–")
-                continue
-            share = "" if row in ("profiled test (timer overhead)",) else \
-                f" ({100 * v / r['ms_per_network_s']['train']:.0f} %)"
-            cells.append(f"{v:.2f}{share}")
-        lines.append(f"| {row} | " + " | ".join(cells) + " |")
-    lines.append("| network-s/s, train | " + " | ".join(f"{r['network_s_per_s']['train']:.1f}" for r in results)
-                 + " |")
-    return "\n".join(lines)
+def block_input_share(results: list[dict]) -> dict:
+    """Per run ("ARM N"), the share of the native kernel's blocks of eight cells with input at each receptor in a
+    step (the blocks whose jumps the kernel computes), from the profiling build's counters."""
+    share = {}
+    for r in results:
+        ev = r.get("events_per_network_s", {})
+        if ev.get("cell_blocks"):
+            share[f"{r['arm']} {r['networks']}"] = {
+                rec: round(ev[f"blocks_{rec}"] / ev["cell_blocks"], 3)
+                for rec in ("ampa", "nmda", "gaba_prox", "gaba_dist")}
+    return share
 
 
 def main(argv=None) -> int:
@@ -212,7 +209,8 @@ def main(argv=None) -> int:
     out = {"date": time.strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {os.cpu_count()} CPUs "
            "(pinned to one)", "command": "python benchmarks/profile.py " + " ".join(sys.argv[1:] if argv is None
                                                                                    else argv),
-           "jax": jax.__version__, "results": results}
+           "jax": jax.__version__, "block_input_share": block_input_share(results), "by_run": by_run(results),
+           "results": results}
     if args.json_out:
         with open(args.json_out, "w") as f:
             json.dump(out, f, indent=1)

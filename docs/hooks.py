@@ -6,7 +6,8 @@
 * **Numbers from result files.** A page states a measured number by naming its result file in ``docs/results/``
   and the field, never by copying it: ``{{ result: FILE : PATH }}`` or ``{{ result: FILE : PATH : FORMAT }}`` is
   replaced by the value at PATH (dot-separated keys) of ``docs/results/FILE``, and ``{{ results table: FILE }}`` by
-  the whole results table of a ``jaxarm reproduce`` file (its ``success_table.json``). FORMAT is a Python format
+  the whole results table of a ``jaxarm reproduce`` file (its ``success_table.json``); ``{{ profile table: FILE }}``
+  by the table of a ``benchmarks/profile.py`` result file. FORMAT is a Python format
   spec (``.1f``, ``,.0f``) or one of :data:`FORMATS`. Where a page is read unrendered (README.md on GitHub), the
   number is written out and followed by ``<!-- result: FILE : PATH [: FORMAT] -->``; the build (for the site's
   pages) and tests/test_docs.py (for README.md too) fail when the number before such a marker is not the file's.
@@ -30,6 +31,7 @@ _TILDE = re.compile(r"<code>~(?:[\w.]*\.)?(\w+)</code>")
 
 PLACEHOLDER = re.compile(r"\{\{\s*result:([^{}]*)\}\}")
 TABLE = re.compile(r"\{\{\s*results table:\s*([\w.-]+)\s*\}\}")
+PROFILE_TABLE = re.compile(r"\{\{\s*profile table:\s*([\w.-]+)\s*\}\}")
 MARKER = re.compile(r"<!--\s*result:(.*?)-->")
 
 
@@ -90,9 +92,21 @@ def results_table(name: str) -> str:
     return results_markdown(_load(name))
 
 
+def profile_table(name: str) -> str:
+    """The table of a ``benchmarks/profile.py`` result file, as the script prints it (benchmarks/profile_table.py)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "profile_table.py"
+    spec = importlib.util.spec_from_file_location("profile_table", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.table(_load(name)["results"])
+
+
 def render(markdown: str) -> str:
     """``markdown`` with every result placeholder replaced by its value."""
     markdown = TABLE.sub(lambda m: results_table(m.group(1)), markdown)
+    markdown = PROFILE_TABLE.sub(lambda m: profile_table(m.group(1)), markdown)
     return PLACEHOLDER.sub(lambda m: result(m.group(1)), markdown)
 
 
