@@ -385,9 +385,10 @@ struct CellConstantsView {   // per-cell constants (native_cell_floats) and the 
 // One clock step of every cell (jaxarm.network.cell.cell_step): decay of every component, refractory bookkeeping,
 // V (the deviation every driving force of this step uses), the jumps of this step's input in[4 n] (AMPA, NMDA,
 // GABA-prox, GABA-dist: loads with Seq, weights without), the threshold test into spiked[n].
-// A receptor's jump needs transcendental functions, but only where that receptor has input this step: in a
-// simulated second of the paper's network, 49 % of the blocks of eight cells have AMPA input in a step, 25 % NMDA,
-// 23 % and 20 % GABA (benchmarks/profile.py's block counters). So the blocks go in three passes: (1) decay, V and,
+// A receptor's jump needs transcendental functions, but only where that receptor has input this step: in the
+// paper's network about half of the blocks of eight cells have AMPA input in a step, a quarter NMDA and a fifth to
+// a quarter each GABA (block_input_share in docs/results/profile.json, from the profiling build's block counters).
+// So the blocks go in three passes: (1) decay, V and,
 // per receptor, the list of blocks with input; (2) per receptor, the jumps of its listed blocks only (with selects
 // for the cells of a block without input, which keep their component); (3) the threshold test. Lists instead of a
 // branch per block: the branches, taken 20-50 % of the time at random, cost more in mispredictions than the skipped
