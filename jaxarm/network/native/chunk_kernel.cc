@@ -471,9 +471,12 @@ inline void threshold_lanes(int64_t i, const CellArrays& s, const CellConstantsV
   const T rmp = load<T>(c.rmp + i), vth = load<T>(c.vth + i), vblock = load<T>(c.vblock + i);
   const T ex = load<T>(s.excess + i);
   const I sn = load<I>(s.since + i), n_ref = load<I>(c.n_ref + i);
-  const T sum = load<T>(s.ampa + i) + load<T>(s.nmda + i) + load<T>(s.gprox + i) + load<T>(s.gdist + i) +
-                load<T>(s.ahp + i);
-  const T vm = simd::min(simd::max(rmp + sum, simd::splat<T>(c.vm_min)), simd::splat<T>(c.vm_max));
+  // summed from rmp on, in the one-cell form's order (float addition is not associative: another order moves V in
+  // its last bit, and once in a long run a spike with it)
+  const T vm = simd::min(simd::max(rmp + load<T>(s.ampa + i) + load<T>(s.nmda + i) + load<T>(s.gprox + i) +
+                                       load<T>(s.gdist + i) + load<T>(s.ahp + i),
+                                   simd::splat<T>(c.vm_min)),
+                         simd::splat<T>(c.vm_max));
   auto spike = (sn >= n_ref) & (vm > vth + ex) & (vm <= vblock);
   if constexpr (PerEvent)   // below threshold before this step's input, above Vblock after it: crossed
     spike |= (sn >= n_ref) & (vm > vblock) & (rmp + load<T>(s.v + i) <= vth + ex);
