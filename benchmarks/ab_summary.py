@@ -4,7 +4,7 @@
 
 OUT_DIR holds alternate.sh's {net,train}-{before,now}-R.json; BEFORE_DIR is the tree it compared with (its commit is
 recorded, as is this tree's). Prints JSON: date, machine, command, the two commits, every round's figures, the
-medians over the rounds (network-s/s) and now / before.
+medians over the rounds (network-s/s) and now / before; the medians and ratios also as lines on stderr.
 """
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ import os
 import platform
 import statistics
 import subprocess
+import sys
 
 
 
@@ -52,10 +53,13 @@ def main(argv=None) -> None:
                     help="the machine, in words (default: architecture and CPU count)")
     args = ap.parse_args(argv)
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    mtime = max(os.path.getmtime(f) for f in glob.glob(os.path.join(args.out_dir, "*.json")))
+    mtime = max(os.path.getmtime(f) for f in glob.glob(os.path.join(args.out_dir, "*-*-*.json")))   # the rounds
     result = {"date": datetime.datetime.fromtimestamp(mtime, datetime.timezone.utc).strftime("%Y-%m-%d %H:%M"),
               "machine": args.machine, "command": args.command, "before": commit(args.before_dir),
               "now": args.now or commit(here), **summarise(args.out_dir)}
+    for key, med in result["median"].items():
+        print(f"{key}: now {med['now']:.2f}, before {med['before']:.2f} network-s/s, "
+              f"now/before {result['ratio_now_over_before'][key]:.3f}", file=sys.stderr)
     print(json.dumps(result, indent=1))
 
 

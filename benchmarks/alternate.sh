@@ -5,7 +5,8 @@
 # benchmarks/network.py (1 and 64 networks) and benchmarks/train.py (60 networks, both arms), one thread, on
 # BEFORE_DIR, then on this tree, each
 # with PYTHONPATH pointing at its own tree and this tree's Python. Writes OUT_DIR/{net,train}-{before,now}-R.json
-# and prints the medians over the rounds and their ratio now / before.
+# and prints the medians over the rounds and their ratio now / before (benchmarks/ab_summary.py, also written as
+# OUT_DIR/summary.json).
 set -euo pipefail
 before=$(cd "$1" && pwd); out=$2; rounds=${3:-4}
 now=$(cd "$(dirname "$0")/.." && pwd); py=${PYTHON:-$now/.venv/bin/python}
@@ -20,13 +21,5 @@ for r in $(seq 1 "$rounds"); do
     echo "$side round $r done $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"
   done
 done
-"$py" - "$out" <<'PY'
-import glob, json, statistics, sys
-out = sys.argv[1]
-for bench, keys in (("net", ["1", "64"]), ("train", ["simple_60", "musculoskeletal_60"])):
-    for k in keys:
-        med = {s: statistics.median(json.load(open(f))["network_s_per_s"][k]
-                                    for f in glob.glob(f"{out}/{bench}-{s}-*.json")) for s in ("before", "now")}
-        print(f"{bench} {k}: now {med['now']:.2f}, before {med['before']:.2f} network-s/s, "
-              f"now/before {med['now'] / med['before']:.3f}")
-PY
+# the rounds' medians and ratios: printed, and written as a result file
+"$py" "$now/benchmarks/ab_summary.py" "$out" "$before" --command "benchmarks/alternate.sh $*" > "$out/summary.json"

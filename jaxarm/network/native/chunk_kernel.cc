@@ -152,12 +152,13 @@ inline bool any(bool m) { return m; }
 inline bool any(vi m) {
 #ifdef __AVX__
   return !_mm256_testz_si256((__m256i)m, (__m256i)m);
-#endif
+#else
   uint64_t w[kLanes / 2];
   std::memcpy(w, &m, sizeof m);
   uint64_t o = 0;
   for (int k = 0; k < kLanes / 2; ++k) o |= w[k];
   return o != 0;
+#endif
 }
 template <class T> inline T load(const float* p) { T x; std::memcpy(&x, p, sizeof x); return x; }
 template <class T> inline T load(const int32_t* p) { T x; std::memcpy(&x, p, sizeof x); return x; }
@@ -311,12 +312,24 @@ inline int32_t count_events(uint32_t u, int64_t l, int64_t lanes, const uint32_t
   return c;
 }
 
+// Lane l's events from its hash u: the count, spent against a limited lane's budget, added to its input
+template <int KMax>
+inline void lane_noise(uint32_t u, int64_t l, int64_t lanes, int64_t kmax, const uint32_t* __restrict__ thr,
+                       const float* __restrict__ w, int32_t* __restrict__ left, bool limited, float* __restrict__ in) {
+  int32_t c = count_events<KMax>(u, l, lanes, thr, kmax);
+  if (limited) {
+    const bool lim = left[l] < kUnlimitedEvents;
+    c = lim ? std::min(c, left[l]) : c;
+    left[l] -= lim ? c : 0;
+  }
+  *in += float(c) * w[l];
+}
+
 // receptor lanes [0, n) of a lane table whose receptor r starts at r0 (key, thresholds) into input row inr
 template <int KMax>
 void noise_receptor(int64_t n, int64_t lanes, int64_t kmax, int64_t r0, uint32_t s, const uint32_t* __restrict__ lane_key,
                     const uint32_t* __restrict__ thr, const float* __restrict__ w, int32_t* __restrict__ left,
                     bool limited, float* __restrict__ inr, uint32_t* __restrict__ ub, int32_t* __restrict__ blocks) {
-  using simd::load;
   const int64_t full = n - n % simd::kLanes;
   int32_t n_listed = 0;
   for (int64_t l = 0; l < full; l += simd::kLanes) {
@@ -329,27 +342,11 @@ void noise_receptor(int64_t n, int64_t lanes, int64_t kmax, int64_t r0, uint32_t
     blocks[n_listed] = int32_t(l);
     n_listed += simd::any((simd::vi)(u >= t0));
   }
-  for (int32_t b = 0; b < n_listed; ++b) {
-    const int64_t l0 = blocks[b];
-    for (int64_t l = l0; l < l0 + simd::kLanes; ++l) {   // vectorised: a fixed trip count
-      int32_t c = count_events<KMax>(ub[l], r0 + l, lanes, thr, kmax);
-      if (limited) {
-        const bool lim = left[r0 + l] < kUnlimitedEvents;
-        c = lim ? std::min(c, left[r0 + l]) : c;
-        left[r0 + l] -= lim ? c : 0;
-      }
-      inr[l] += float(c) * w[r0 + l];
-    }
-  }
-  for (int64_t l = full; l < n; ++l) {
-    int32_t c = count_events<KMax>(hash32(lane_key[r0 + l] ^ s), r0 + l, lanes, thr, kmax);
-    if (limited) {
-      const bool lim = left[r0 + l] < kUnlimitedEvents;
-      c = lim ? std::min(c, left[r0 + l]) : c;
-      left[r0 + l] -= lim ? c : 0;
-    }
-    inr[l] += float(c) * w[r0 + l];
-  }
+  for (int32_t b = 0; b < n_listed; ++b)
+    for (int64_t l = blocks[b]; l < blocks[b] + simd::kLanes; ++l)   // vectorised: a fixed trip count
+      lane_noise<KMax>(ub[l], r0 + l, lanes, kmax, thr, w, left, limited, inr + l);
+  for (int64_t l = full; l < n; ++l)
+    lane_noise<KMax>(hash32(lane_key[r0 + l] ^ s), r0 + l, lanes, kmax, thr, w, left, limited, inr + l);
 }
 
 // The three receptors' noise (AMPA-distal, GABA-prox, GABA-dist lanes: rows 0, 2, 3 of this step's input inb)
