@@ -1,4 +1,7 @@
-"""XLA:CPU without fused multiply-add, so that a network's bits do not depend on its place in its group.
+"""Arithmetic whose bits do not depend on a network's place in its group, nor on the group's size.
+
+Two things in XLA:CPU made them depend on it: fused multiply-add (below, :func:`pin`) and dot products
+(:func:`ordered_dot`).
 
 XLA:CPU lets LLVM fuse ``a * b + c`` into one FMA instruction (one rounding instead of two) wherever its code
 generator sees fit, and the code it generates for a group of networks is not the same for every row: in the
@@ -12,11 +15,19 @@ rounds on its own, whatever code LLVM generates, so the rows of a group compute 
 :func:`pin` caps XLA:CPU's instruction set at AVX (``--xla_cpu_max_isa=AVX``: no FMA, no AVX2 or AVX-512 in XLA's
 code; the native network kernel is compiled apart and keeps them). It must run before JAX starts its CPU backend;
 ``import jaxarm`` calls it. Measured cost on the closed loop: none beyond noise (``docs/scaling.md``).
+
+XLA:CPU computes a ``dot`` with kernels chosen and blocked by the operands' shapes, so the order in which a row's
+products are summed changes with the batch a ``vmap`` adds: the musculoskeletal arm's muscle-path polynomial
+(``FastGeometry``) gave other bits for a network alone, in a group of 4 and in a group of 64, and a network's
+training parted with its group's size (``tests/test_batch_invariance.py``). :func:`ordered_dot` sums the products
+one after the other, in the contraction's order, as elementwise operations that round the same in every row.
 """
 from __future__ import annotations
 
 import os
 import warnings
+
+import jax.numpy as jnp
 
 #: The flag :func:`pin` adds to ``XLA_FLAGS``.
 NO_FMA_FLAG = "--xla_cpu_max_isa=AVX"
@@ -42,3 +53,24 @@ def pin() -> bool:
         return False
     os.environ["XLA_FLAGS"] = f"{flags} {NO_FMA_FLAG}".strip()
     return True
+
+
+def ordered_dot(x, y):
+    """``x @ y`` summed in a fixed order: ``x[..., 0] y[0] + x[..., 1] y[1] + ...``, left to right, each product
+    and sum rounded on its own, so every row of a batch gets the same bits whatever the batch's size.
+
+    ``x`` is (..., K) and ``y`` (K,) (a matrix-vector or vector-vector product: the result is ``x.shape[:-1]``) or
+    (K, M) (the result is ``x.shape[:-1] + (M,)``). For the small contractions of the arm (K at most a few tens),
+    not for large matrix products.
+    """
+    x, y = jnp.asarray(x), jnp.asarray(y)
+    if x.shape[-1] != y.shape[0] or y.ndim not in (1, 2):
+        raise ValueError(f"ordered_dot: shapes {x.shape} and {y.shape} do not contract (x (..., K), y (K,) or (K, M))")
+
+    def term(k):
+        return x[..., k, None] * y[k] if y.ndim == 2 else x[..., k] * y[k]
+
+    total = term(0)
+    for k in range(1, y.shape[0]):
+        total = total + term(k)
+    return total

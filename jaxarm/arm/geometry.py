@@ -20,6 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxarm.cpu_arithmetic import ordered_dot
+
 ASSETS = Path(__file__).parent / "assets"
 MJCF_PATH = ASSETS / "arm.xml"
 FIT_PATH = ASSETS / "fast_fit.npz"
@@ -177,18 +179,24 @@ class FastGeometry:
         self.mass_coef = jnp.asarray(fit["mass_coef"], jnp.float32)       # (5, 3): M11, M12, M22
 
     def _monomials(self, q):
-        x = (jnp.asarray(q, float) - self.q_center) / self.q_halfwidth
-        powers = jnp.cumprod(jnp.concatenate([jnp.ones((1, 2), x.dtype), jnp.tile(x, (self.degree, 1))]), axis=0)
+        # The barrier keeps x whole: for a batch of one, XLA's simplifier would otherwise fold the scale into each
+        # power's constant (x^k = (q - c)^k (1/h)^k), other bits than in a batch of several.
+        x = jax.lax.optimization_barrier((jnp.asarray(q, float) - self.q_center) / self.q_halfwidth)
+        # x^k = x^(k-1) x, one product after the other (a cumprod may be computed as a scan tree)
+        rows = [jnp.ones_like(x)]
+        for _ in range(self.degree):
+            rows.append(rows[-1] * x)
+        powers = jnp.stack(rows)
         if self.separable:
             return jnp.concatenate([powers[:, 0], powers[1:, 1]])
         return powers[self.exponents[:, 0], 0] * powers[self.exponents[:, 1], 1]
 
     def mtu_lengths(self, q):
-        return self._monomials(q) @ self.all_coef[:, : self.n_muscles]
+        return ordered_dot(self._monomials(q), self.all_coef[:, : self.n_muscles])
 
     def mass_matrix(self, q2):
         c, s = jnp.cos(q2), jnp.sin(q2)
-        m11, m12, m22 = jnp.stack([jnp.ones_like(c), c, s, c * c - s * s, 2 * s * c]) @ self.mass_coef
+        m11, m12, m22 = ordered_dot(jnp.stack([jnp.ones_like(c), c, s, c * c - s * s, 2 * s * c]), self.mass_coef)
         return jnp.array([[m11, m12], [m12, m22]])
 
     def __call__(self, q, qd) -> ArmGeometry:
@@ -196,9 +204,9 @@ class FastGeometry:
         q = jnp.asarray(q, float)
         qd = jnp.asarray(qd, float)
         m = self.n_muscles
-        values = self._monomials(q) @ self.all_coef
+        values = ordered_dot(self._monomials(q), self.all_coef)   # ordered: the same bits in any batch
         lengths, moment_arms = values[:m], -jnp.stack([values[m:2 * m], values[2 * m:]], axis=-1)
         mass, dmass = jax.jvp(self.mass_matrix, (q[1],), (jnp.ones((), q.dtype),))
         # Lagrange: M qdd + dM/dt qd - 1/2 d(qd^T M qd)/dq = tau, and M depends on the elbow angle only.
-        bias = dmass @ qd * qd[1] - 0.5 * jnp.array([0.0, qd @ dmass @ qd])
+        bias = ordered_dot(dmass, qd) * qd[1] - 0.5 * jnp.array([0.0, ordered_dot(qd, ordered_dot(dmass, qd))])
         return ArmGeometry(lengths, moment_arms, mass, bias)

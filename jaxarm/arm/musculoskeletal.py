@@ -38,6 +38,7 @@ from jaxarm.arm import muscle as mus
 from jaxarm.arm.base import ArmObs, MuscleObs, hand_position
 from jaxarm.arm.geometry import FastGeometry, MjxGeometry, c_geometry, load_mjmodel
 from jaxarm.config.arm import SMOOTH_KINKS, MusculoskeletalArmConfig
+from jaxarm.cpu_arithmetic import ordered_dot
 
 #: Muscles driven by each excitation group ([model: the musculoskeletal arm](../model.md#the-musculoskeletal-arm),
 #: MuscleExcitationSetter). Others are passive.
@@ -149,7 +150,7 @@ class MusculoskeletalArm:
     def excitations(self, u):
         """(n_lanes,) muscle excitations (the 22 muscles, then zeros for the padding lanes) from the 4 group
         excitations u in [0, 1] (values outside are clipped)."""
-        return self.group_drive @ jnp.clip(jnp.asarray(u, float), 0.0, 1.0)
+        return ordered_dot(self.group_drive, jnp.clip(jnp.asarray(u, float), 0.0, 1.0))
 
     def step(self, state: MusculoskeletalArmState, u) -> MusculoskeletalArmState:
         """u: (4,) excitations (sh-ext, sh-flex, el-ext, el-flex) in [0, 1]. Advances ``dt_s`` (1 ms default)."""
@@ -202,13 +203,13 @@ class MusculoskeletalArm:
     def _substep(self, s: MusculoskeletalArmState, e, h) -> MusculoskeletalArmState:
         geo = self.geometry(s.q, s.qd)
         lmt = self._lanes(geo.mtu_length_m)
-        lmt_rate = self._lanes(-(geo.moment_arm_m @ s.qd))      # dL/dt = -(moment arm) . qd
+        lmt_rate = self._lanes(-ordered_dot(geo.moment_arm_m, s.qd))      # dL/dt = -(moment arm) . qd
         ms, tendon = self._muscles(s.muscle, e, lmt, lmt_rate, h)
         tendon = tendon[: self.n_muscles]
         spring, damping = self.joint_limit_torque(s.q, s.qd)
-        tau = geo.moment_arm_m.T @ tendon + spring - geo.bias_nm
+        tau = ordered_dot(geo.moment_arm_m.T, tendon) + spring - geo.bias_nm
         # (M + h B) qd' = M qd + h tau: implicit limit damping B = diag(damping).
-        qd = solve_2x2(geo.mass_matrix + h * jnp.diag(damping), geo.mass_matrix @ s.qd + h * tau)
+        qd = solve_2x2(geo.mass_matrix + h * jnp.diag(damping), ordered_dot(geo.mass_matrix, s.qd) + h * tau)
         return MusculoskeletalArmState(s.q + h * qd, qd, ms)
 
     def observe(self, state: MusculoskeletalArmState) -> ArmObs:
