@@ -21,9 +21,9 @@ Set-up, once per process and before JAX computes anything (:func:`start`; the co
 
 Each device runs its share in groups of :func:`networks_at_once` networks (8 on CPUs), one group after the other, and
 a batch is padded to whole groups on every device (:func:`padded_size`): the extra members are computed and dropped
-by the caller, never counted. Every network is then computed by the same program whatever the layout, and with XLA's
-fused multiply-add off (:mod:`jaxarm.cpu_arithmetic`) to the same bits at any place in its group (docs/scaling.md,
-"A network in another batch").
+by the caller, never counted. With XLA's fused multiply-add off and the arm's small products summed in a fixed order
+(:mod:`jaxarm.cpu_arithmetic`), a network gets the same bits at any place in its group and in a group of any size
+(docs/scaling.md, "A network in another batch").
 """
 from __future__ import annotations
 
@@ -172,8 +172,8 @@ _networks_at_once: int | None = None
 def networks_at_once() -> int:
     """Networks each device steps together (0: its whole share). ``--networks-at-once`` sets it; by default
     :data:`CPU_NETWORKS_AT_ONCE` on CPUs and the whole share on accelerators, whose parallelism is across networks.
-    The group's size is part of the compiled program, so another value may change results in the last bits; with one
-    value, the layout (devices, processes) does not."""
+    Any value gives the networks the same bits (``tests/test_batch_invariance.py``); 0 (one ``vmap``) too, but for
+    the epoch summaries' hand distances, about 1e-6 m off the grouped ones (docs/scaling.md)."""
     if _networks_at_once is not None:
         return _networks_at_once
     return CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
@@ -331,8 +331,7 @@ def _round_up(n: int, devices: int, at_once: int) -> int:
 def padded_size(n: int, m: Mesh | None = None, at_once: int = 0) -> int:
     """``n`` rounded up to a multiple of the mesh's device count, times ``at_once`` when that is given: every
     device then runs whole groups of ``at_once`` networks (:func:`map_networks`), the same program whatever the
-    layout. (XLA's CPU code for an op differs with its batch size, in the last bit: a network computed in a
-    batch of 15 and in one of 30 drifts apart within seconds of training; in groups of 8 it is the same.)"""
+    layout."""
     return _round_up(n, (m or mesh()).size, at_once)
 
 
