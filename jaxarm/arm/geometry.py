@@ -208,5 +208,6 @@ class FastGeometry:
         lengths, moment_arms = values[:m], -jnp.stack([values[m:2 * m], values[2 * m:]], axis=-1)
         mass, dmass = jax.jvp(self.mass_matrix, (q[1],), (jnp.ones((), q.dtype),))
         # Lagrange: M qdd + dM/dt qd - 1/2 d(qd^T M qd)/dq = tau, and M depends on the elbow angle only.
-        bias = ordered_dot(dmass, qd) * qd[1] - 0.5 * jnp.array([0.0, ordered_dot(qd, ordered_dot(dmass, qd))])
+        dmass_qd = ordered_dot(dmass, qd)
+        bias = dmass_qd * qd[1] - 0.5 * jnp.array([0.0, ordered_dot(qd, dmass_qd)])
         return ArmGeometry(lengths, moment_arms, mass, bias)
