@@ -50,3 +50,14 @@ def test_fast_math_edges():
     assert native.fast_math("exp", np.array([0.0], np.float32)).tolist() == [1.0]
     # below the clamp the result is tiny and positive, not a wrapped exponent
     assert 0.0 < native.fast_math("exp", np.array([-200.0], np.float32))[0] < 1e-37
+
+
+@pytest.mark.parametrize("name, lo, hi", [("exp", -90.0, 90.0), ("expm1", -90.0, 90.0), ("log1p", -0.999, 100.0),
+                                          ("log1p", -2e-3, 2e-3)])
+def test_eight_lanes_give_the_one_float_bits(name, lo, hi):
+    """The kernel's vector path (cells' jumps, delivery's event loads) and its one-cell tail take the same
+    operations: every lane's bits equal the scalar function's, the branch points (log's mantissa split, log1p's
+    series below 1e-3) included."""
+    x = np.concatenate([grid(lo, hi, 100_001, seed=1), np.float32([1e-3, -1e-3, 0.41421356, 0.0, -0.0])])
+    np.testing.assert_array_equal(native.fast_math(name, x, lanes=True).view(np.int32),
+                                  native.fast_math(name, x).view(np.int32))

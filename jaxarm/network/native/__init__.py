@@ -141,16 +141,20 @@ def _register(profile: bool = False) -> tuple[bool, str]:
 FAST_MATH = ("exp", "expm1", "log1p")
 
 
-def fast_math(name: str, x) -> np.ndarray:
+def fast_math(name: str, x, lanes: bool = False) -> np.ndarray:
     """The kernel's own float32 ``exp``, ``expm1`` or ``log1p`` (the vectorisable ones it uses instead of the C
-    library's) of the array ``x``, for tests."""
+    library's) of the array ``x``, for tests: one float at a time, or with ``lanes`` in the kernel's blocks of
+    eight lanes."""
     ok, why = _register()
     if not ok:
         raise RuntimeError(f"jaxarm native network kernel unavailable: {why}")
-    x = np.ascontiguousarray(x, np.float32)
+    x = np.ascontiguousarray(np.ravel(x), np.float32)
+    n = x.size
+    if lanes:
+        x = np.concatenate([x, np.zeros(-n % 8, np.float32)])
     out = np.empty_like(x)
-    _LIBS[False].JaxarmFastMath(x.ctypes.data, out.ctypes.data, x.size, FAST_MATH.index(name))
-    return out
+    _LIBS[False].JaxarmFastMath(x.ctypes.data, out.ctypes.data, x.size, FAST_MATH.index(name) + 3 * lanes)
+    return out[:n]
 
 
 def enable_profiling(on: bool = True) -> None:

@@ -33,6 +33,10 @@
 
 namespace ffi = xla::ffi;
 
+// The per-block lane functions inlined into their loops: called, every block reloaded the arrays' pointers and
+// the block lists' counters through memory (a chain from one block to the next)
+#define ALWAYS_INLINE inline __attribute__((always_inline))
+
 // Phase timers for benchmarks/profile.py: built only with -DJAXARM_PROFILE (a library of its own, see
 // jaxarm.network.native.enable_profiling); the production build compiles every PROF_ macro to nothing. Not
 // thread-safe: profile with one kernel thread.
@@ -130,6 +134,13 @@ inline int32_t min(int32_t a, int32_t b) { return std::min(a, b); }
 inline vf min(vf a, vf b) { return b < a ? b : a; }
 inline vf max(vf a, vf b) { return a < b ? b : a; }
 inline vi min(vi a, vi b) { return b < a ? b : a; }
+// a float's bits and back, an integer's value as a float: lane by lane
+inline int32_t to_bits(float x) { int32_t b; std::memcpy(&b, &x, 4); return b; }
+inline vi to_bits(vf x) { return (vi)x; }
+template <class T> inline T from_bits(int32_t b) { float x; std::memcpy(&x, &b, 4); return x; }
+template <class T> inline T from_bits(vi b) { return (vf)b; }
+template <class T> inline T to_float(int32_t x) { return float(x); }
+template <class T> inline T to_float(vi x) { return __builtin_convertvector(x, vf); }
 // floor of |x| < 2^31: truncate, then step down where truncation rounded up (negative non-integers); = std::floor
 inline float floor(float x) { return std::floor(x); }
 inline vf floor(vf x) {
@@ -168,8 +179,13 @@ inline void store(int32_t* p, int32_t x) { *p = x; }
 inline void store(int32_t* p, vi x) { std::memcpy(p, &x, sizeof x); }
 inline void store_flag(uint8_t* p, bool m) { *p = m; }
 inline void store_flag(uint8_t* p, vi m) {
+#ifdef __AVX2__   // the lanes' masks narrowed by two saturating packs (the generic conversion extracts lane by lane)
+  const __m128i w = _mm_packs_epi32(_mm256_castsi256_si128((__m256i)m), _mm256_extracti128_si256((__m256i)m, 1));
+  _mm_storel_epi64(reinterpret_cast<__m128i*>(p), _mm_and_si128(_mm_packs_epi16(w, w), _mm_set1_epi8(1)));
+#else
   const vb b = __builtin_convertvector(m, vb) & 1;
   std::memcpy(p, &b, sizeof b);
+#endif
 }
 }  // namespace simd
 
@@ -180,16 +196,6 @@ inline void store_flag(uint8_t* p, vi m) {
 // Errors against the exact functions, measured in tests/test_native_math.py over their whole float ranges: at most
 // 0.97 ulp (exp), 1.5 ulp (expm1, near x = ln2 / 2) and 1.1 ulp (log1p); mean 0.2-0.3 ulp.
 namespace fastmath {
-inline float bits_to_float(int32_t b) {
-  float f;
-  std::memcpy(&f, &b, 4);
-  return f;
-}
-inline int32_t float_to_bits(float f) {
-  int32_t b;
-  std::memcpy(&b, &f, 4);
-  return b;
-}
 // exp and expm1 are templates over a lane type: float, or simd::vf (eight floats in GCC/Clang vector extensions,
 // for the cells' update in blocks). Every lane takes exactly the scalar's operations, so both give the same bits.
 template <class T>
@@ -215,33 +221,38 @@ inline T expm1(T x) {
   const T scale = simd::pow2(k);
   return k == 0.0f ? p : scale * p + (scale - 1.0f);
 }
-inline float log(float u) {   // u > 0, finite
-  const int32_t b = float_to_bits(u);
-  int32_t e = ((b >> 23) & 0xff) - 127;
-  float m = bits_to_float((b & 0x007fffff) | 0x3f800000);   // [1, 2)
-  const bool high = m > 1.41421356f;
+template <class T>
+ALWAYS_INLINE T log(T u) {   // u > 0, finite
+  typedef typename simd::IntOf<T>::type I;
+  const I b = simd::to_bits(u);
+  I e = ((b >> 23) & 0xff) - 127;
+  T m = simd::from_bits<T>((b & 0x007fffff) | 0x3f800000);   // [1, 2)
+  const auto high = m > 1.41421356f;
   m = high ? 0.5f * m : m;
   e = high ? e + 1 : e;
-  const float f = m - 1.0f;
-  const float z = f * f;
-  float y = ((((((((7.0376836292e-2f * f - 1.1514610310e-1f) * f + 1.1676998740e-1f) * f - 1.2420140846e-1f) * f +
-                 1.4249322787e-1f) * f - 1.6668057665e-1f) * f + 2.0000714765e-1f) * f - 2.4999993993e-1f) * f +
-             3.3333331174e-1f) * f * z;
-  const float ef = float(e);
+  const T f = m - 1.0f;
+  const T z = f * f;
+  T y = ((((((((7.0376836292e-2f * f - 1.1514610310e-1f) * f + 1.1676998740e-1f) * f - 1.2420140846e-1f) * f +
+             1.4249322787e-1f) * f - 1.6668057665e-1f) * f + 2.0000714765e-1f) * f - 2.4999993993e-1f) * f +
+         3.3333331174e-1f) * f * z;
+  const T ef = simd::to_float<T>(e);
   y += ef * -2.12194440e-4f;
   y -= 0.5f * z;
   return (f + y) + ef * 0.693359375f;
 }
-inline float log1p(float x) {   // x > -1
-  const float u = 1.0f + x;
-  const float d = u - 1.0f;
-  const float series = x - x * x * (0.5f - x * (1.0f / 3 - x * 0.25f));   // |x| < 1e-3: error below x^5 / 5
-  return std::fabs(x) < 1e-3f ? series : log(u) + (x - d) / u;
+template <class T>
+ALWAYS_INLINE T log1p(T x) {   // x > -1
+  const T u = 1.0f + x;
+  const T d = u - 1.0f;
+  const T series = x - x * x * (0.5f - x * (1.0f / 3 - x * 0.25f));   // |x| < 1e-3: error below x^5 / 5
+  const T general = log(u) + (x - d) / u;
+  return (x < 1e-3f) & (x > -1e-3f) ? series : general;
 }
 }  // namespace fastmath
 
-inline float event_load(float w, float e_rev, float max_jump_fraction) {
-  return -e_rev * fastmath::log1p(-std::min(w / e_rev, max_jump_fraction));
+template <class T>
+ALWAYS_INLINE T event_load(T w, float e_rev, float max_jump_fraction) {
+  return -e_rev * fastmath::log1p(-simd::min(w / e_rev, simd::splat<T>(max_jump_fraction)));
 }
 
 struct View {  // one input or output: base pointer, per-network element count, element size, batch strides
@@ -407,7 +418,7 @@ enum Receptor { kRecAmpa, kRecNmda, kRecGabaProx, kRecGabaDist };
 // (1) decay, refractory bookkeeping and V of the lanes at i; with n_listed, i appended to the list of every receptor
 // with input in some lane
 template <class T>
-inline void decay_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c, int32_t* n_listed) {
+ALWAYS_INLINE void decay_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c, int32_t* n_listed) {
   using simd::load;
   typedef typename simd::IntOf<T>::type I;
   const int64_t n = s.n;
@@ -437,7 +448,7 @@ inline void decay_lanes(int64_t i, const CellArrays& s, const CellConstantsView&
 
 // (2) receptor R's jumps in the lanes at i (an entry of R's list)
 template <class T, bool Seq, Receptor R>
-inline void jump_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
+ALWAYS_INLINE void jump_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
   using simd::load;
   using simd::splat;
   const int64_t n = s.n;
@@ -461,7 +472,7 @@ inline void jump_lanes(int64_t i, const CellArrays& s, const CellConstantsView& 
 
 // (3) the threshold test of the lanes at i
 template <class T, bool PerEvent, bool OnEvent>
-inline void threshold_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
+ALWAYS_INLINE void threshold_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
   using simd::load;
   typedef typename simd::IntOf<T>::type I;
   const int64_t n = s.n;
@@ -728,14 +739,18 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       last[i] = t_ms;
       count[i] += 1;
     }
-    for (int64_t j = 0; j < n_p; ++j) {
-      if (p_next[j] != m) continue;
-      const int64_t id = p_start + j;
-      out_spk[id] = true;
-      prev[id] = last[id];
-      last[id] = t_ms;
-      count[id] += 1;
-      p_next[j] = p_interval[j] >= kNever ? kNever : p_next[j] + p_interval[j];
+    for (int64_t j0 = 0; j0 < n_p; j0 += simd::kLanes) {
+      if (j0 + simd::kLanes <= n_p && !simd::any(simd::load<simd::vi>(p_next + j0) == m))
+        continue;   // no P spike now in these eight
+      for (int64_t j = j0; j < std::min(j0 + simd::kLanes, n_p); ++j) {
+        if (p_next[j] != m) continue;
+        const int64_t id = p_start + j;
+        out_spk[id] = true;
+        prev[id] = last[id];
+        last[id] = t_ms;
+        count[id] += 1;
+        p_next[j] = p_interval[j] >= kNever ? kNever : p_next[j] + p_interval[j];
+      }
     }
     PROF_MARK(kSpikeBookkeeping)
     PROF_COUNT(spikes, int64_t(fired.size()))
@@ -752,8 +767,12 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       PROF_COUNT(synapse_events, tb.out_width)
       const int64_t wd = tb.out_width;
       for (int64_t j = 0; j < wd; ++j) row_w[j] = syn[j] < n_syn ? wt[j] * wgain[syn[j]] : 0.0f;  // padding: 0
-      if (seq)
-        for (int64_t j = 0; j < wd; ++j) row_w[j] = event_load(row_w[j], e_rev, jump_cap);
+      if (seq) {
+        int64_t j = 0;
+        for (; j + simd::kLanes <= wd; j += simd::kLanes)
+          simd::store(row_w + j, event_load(simd::load<simd::vf>(row_w + j), e_rev, jump_cap));
+        for (; j < wd; ++j) row_w[j] = event_load(row_w[j], e_rev, jump_cap);
+      }
       for (int64_t j = 0; j < wd; ++j) {
         if (syn[j] >= n_syn) continue;  // padding
         // slot (m + delay) % n_slots without a division per synapse: delay < n_slots (Network.n_slots)
@@ -860,10 +879,18 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
 
 }  // namespace
 
-// fastmath for tests (tests/test_native_math.py): out[i] = f(x[i]) with f = exp (0), expm1 (1), log1p (2)
+// fastmath for tests (tests/test_native_math.py): out[i] = f(x[i]) with f = exp (0), expm1 (1), log1p (2), one
+// float at a time; which + 3: the same in blocks of eight lanes (n a multiple of eight), the kernel's vector path
 extern "C" void JaxarmFastMath(const float* x, float* out, int64_t n, int64_t which) {
-  for (int64_t i = 0; i < n; ++i)
-    out[i] = which == 0 ? fastmath::exp(x[i]) : which == 1 ? fastmath::expm1(x[i]) : fastmath::log1p(x[i]);
+  if (which < 3) {
+    for (int64_t i = 0; i < n; ++i)
+      out[i] = which == 0 ? fastmath::exp(x[i]) : which == 1 ? fastmath::expm1(x[i]) : fastmath::log1p(x[i]);
+    return;
+  }
+  for (int64_t i = 0; i + simd::kLanes <= n; i += simd::kLanes) {
+    const simd::vf v = simd::load<simd::vf>(x + i);
+    simd::store(out + i, which == 3 ? fastmath::exp(v) : which == 4 ? fastmath::expm1(v) : fastmath::log1p(v));
+  }
 }
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
