@@ -2,8 +2,8 @@
 # Alternate the network and training benchmarks between another tree and this one, in one sitting:
 #   benchmarks/alternate.sh BEFORE_DIR OUT_DIR [ROUNDS]
 # BEFORE_DIR: a checkout of the commit to compare with (git worktree add /tmp/before COMMIT). Each round runs
-# benchmarks/network.py (1 and 64 networks) and benchmarks/train.py (60 networks, both arms), one thread, on
-# BEFORE_DIR, then on this tree, each
+# benchmarks/network.py (1 and 64 networks; each tree's own script) and this tree's benchmarks/train.py (60
+# networks, both arms, in the commands' groups of 8), one thread, on BEFORE_DIR, then on this tree, each
 # with PYTHONPATH pointing at its own tree and this tree's Python. Writes OUT_DIR/{net,train}-{before,now}-R.json
 # and prints the medians over the rounds and their ratio now / before (benchmarks/ab_summary.py, also written as
 # OUT_DIR/summary.json).
@@ -16,7 +16,7 @@ for r in $(seq 1 "$rounds"); do
     if [ $side = before ]; then dir=$before; else dir=$now; fi
     (cd "$dir" && PYTHONPATH=$dir "$py" benchmarks/network.py --networks 1,64 --repeats 3 --no-brian2 --threads 1 \
         --json > "$out/net-$side-$r.json")
-    (cd "$dir" && PYTHONPATH=$dir "$py" benchmarks/train.py --networks 60 --seconds 2 --repeats 3 --threads 1 \
+    (cd "$dir" && PYTHONPATH=$dir "$py" "$now/benchmarks/train.py" --networks 60 --seconds 2 --repeats 3 --threads 1 \
         --json > "$out/train-$side-$r.json")
     echo "$side round $r done $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"
   done

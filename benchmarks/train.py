@@ -3,7 +3,9 @@
     python benchmarks/train.py --json [--networks 60] [--arm simple] [--seconds 2] [--repeats 3] [--record-s S]
 
 Each measurement compiles one training epoch of ``--seconds`` simulated seconds (original metaparameters, babbling,
-R-STDP on), vmapped over ``--networks`` networks (keys 0..N-1), runs it ``--repeats`` times and reports the median.
+R-STDP on) over ``--networks`` networks (keys 0..N-1), in groups of ``--networks-at-once`` one after the other as
+the commands run them on one device (default: theirs, 8 on a CPU; 0: one vmap of all), runs it ``--repeats`` times
+and reports the median.
 With ``--record-s S`` the epoch records every cell's spikes over its last S seconds (``jaxarm.record``,
 ``jaxarm train --record-train-s``): the cost of recording. Prints JSON: {"network_s_per_s": {"60": ...}, "compile_s": {...}, "config": {...}}.
 """
@@ -20,13 +22,14 @@ import jax
 
 
 def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto", threads: int | None = None,
-            record_s: float = 0.0):
+            record_s: float = 0.0, at_once: int = 0):
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
     from jaxarm.train import make_train
 
     from jaxarm.config.network import NetworkConfig
+    from jaxarm.parallel import map_networks
     from jaxarm.record import RecordConfig
 
     fns = make_train(LoopConfig(arm=arm, task=TaskConfig(epochs=1, epoch_duration_s=seconds),
@@ -37,7 +40,7 @@ def measure(arm: str, n: int, seconds: float, repeats: int, kernel: str = "auto"
     carry = jax.jit(jax.vmap(fns.init))(jax.random.split(jax.random.PRNGKey(0), n))
     t0 = time.perf_counter()
     epoch_fn = fns.epoch_recorded if record_s else fns.epoch
-    epoch = jax.jit(jax.vmap(epoch_fn, in_axes=(0, None))).lower(carry, mp).compile()
+    epoch = jax.jit(lambda c, mp: map_networks(lambda ci: epoch_fn(ci, mp), at_once)(c)).lower(carry, mp).compile()
     compile_s = time.perf_counter() - t0
     times = []
     for _ in range(repeats):
@@ -57,19 +60,27 @@ def main(argv=None) -> int:
     ap.add_argument("--kernel", default="auto", choices=["auto", "native", "xla"], help="NetworkConfig.kernel")
     ap.add_argument("--threads", type=int, default=None,
                     help="NetworkConfig.native_threads (default: $JAXARM_NATIVE_THREADS, else 1)")
+    ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
+                    help="networks stepped together, groups one after the other (default: the commands' default on "
+                         "this backend, 8 on a CPU; 0: one vmap of all)")
     ap.add_argument("--record-s", type=float, default=0.0,
                     help="record every cell's spikes over the epoch's last S seconds (default 0: no recording)")
     args = ap.parse_args(argv)
     from jaxarm.config.network import NetworkConfig
 
+    from jaxarm.parallel import CPU_NETWORKS_AT_ONCE
+
     if args.threads is None:
         args.threads = NetworkConfig().native_threads
+    if args.networks_at_once is None:
+        args.networks_at_once = CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
     out = {"network_s_per_s": {}, "compile_s": {},
            "config": vars(args) | {"cpu_count": os.cpu_count(), "machine": platform.machine(), "jax": jax.__version__,
                                    "backend": jax.default_backend()}}
     for arm in args.arm:
         for n in args.networks:
-            rate, comp = measure(arm, n, args.seconds, args.repeats, args.kernel, args.threads, args.record_s)
+            rate, comp = measure(arm, n, args.seconds, args.repeats, args.kernel, args.threads, args.record_s,
+                                 args.networks_at_once)
             key = str(n) if len(args.arm) == 1 else f"{arm}_{n}"
             out["network_s_per_s"][key] = round(rate, 2)
             out["compile_s"][key] = round(comp, 1)
