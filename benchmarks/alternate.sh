@@ -2,11 +2,12 @@
 # Alternate the network and training benchmarks between another tree and this one, in one sitting:
 #   benchmarks/alternate.sh BEFORE_DIR OUT_DIR [ROUNDS]
 # BEFORE_DIR: a checkout of the commit to compare with (git worktree add /tmp/before COMMIT). Each round runs
-# benchmarks/network.py (1 and 64 networks; each tree's own script) and this tree's benchmarks/train.py (60
-# networks, both arms, in the commands' groups of 8), one thread, on BEFORE_DIR, then on this tree, each
-# with PYTHONPATH pointing at its own tree and this tree's Python. Writes OUT_DIR/{net,train}-{before,now}-R.json
-# and prints the medians over the rounds and their ratio now / before (benchmarks/ab_summary.py, also written as
-# OUT_DIR/summary.json).
+# benchmarks/network.py (1 and 64 networks, each tree's own script) and this tree's benchmarks/train.py (60
+# networks, both arms), one thread, on BEFORE_DIR, then on this tree, each with PYTHONPATH pointing at its own tree
+# and this tree's Python; both scripts run the networks in the commands' groups of 8. (A checkout whose
+# network.py has no --networks-at-once times one vmap of all: copy this tree's network.py into it.)
+# Writes OUT_DIR/{net,train}-{before,now}-R.json and prints the medians over the rounds and their ratio now /
+# before (benchmarks/ab_summary.py, also written as OUT_DIR/summary.json).
 set -euo pipefail
 before=$(cd "$1" && pwd); out=$2; rounds=${3:-4}
 now=$(cd "$(dirname "$0")/.." && pwd); py=${PYTHON:-$now/.venv/bin/python}

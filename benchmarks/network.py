@@ -8,7 +8,8 @@ on), compile time, peak memory, capacity counters.
 Each network size runs in its own process (so peak RSS is that size's, and compile time is a cold compile). The
 drive is the training drive of experiments/network_rates.py (simple arm in closed loop, motor babbling, no
 plasticity), with plasticity bookkeeping (tags on every postsynaptic spike) on; every network has its own wiring and
-noise. The networks first run ``--warmup`` simulated seconds (untimed: the start of every run is a synchronous
+noise. The networks run in groups of ``--networks-at-once`` one after the other, as the commands run them on one
+device (default: theirs, 8 on a CPU; 0: one vmap of all). The networks first run ``--warmup`` simulated seconds (untimed: the start of every run is a synchronous
 transient — all P cells fire at 1 ms — that costs extra spike-list passes; it is timed separately as
 ``transient_network_s_per_s``), then timed runs continue from there. Throughput = networks x simulated seconds /
 wall seconds of the compiled run (median over repeats), compile excluded and reported separately.
@@ -43,13 +44,17 @@ DEFAULT_SECONDS = {1: 2.0, 60: 1.0, 300: 0.5}
 
 
 def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, seed: int, warmup: float,
-           kernel: str = "auto", threads: int = 1) -> dict:
+           kernel: str = "auto", threads: int = 1, at_once: int | None = None) -> dict:
     """Time one network count in this process."""
     sys.path.insert(0, REPO)
     import jax
 
     from experiments.network_rates import make_training_drive
     from jaxarm.network import Network, NetworkConfig
+    from jaxarm.parallel import CPU_NETWORKS_AT_ONCE, map_networks
+
+    if at_once is None:
+        at_once = CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
 
     config = NetworkConfig(kernel=kernel, native_threads=threads)
     if dt_ms is not None:
@@ -58,8 +63,8 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
     net = Network(config)
     keys = jax.random.split(jax.random.key(seed), 2 * n_networks)
     wirings = jax.jit(jax.vmap(net.make_wiring))(keys[:n_networks])
-    start = jax.jit(jax.vmap(make_training_drive(net, warmup)))
-    go_on = jax.jit(jax.vmap(make_training_drive(net, seconds, from_state=True)))
+    start = jax.jit(map_networks(make_training_drive(net, warmup), at_once))
+    go_on = jax.jit(map_networks(make_training_drive(net, seconds, from_state=True), at_once))
     t0 = time.perf_counter()
     state, _ = start(wirings, keys[n_networks:])
     jax.block_until_ready(state)
@@ -84,7 +89,7 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
     return {
         "networks": n_networks, "dt_ms": config.dt_ms, "simulated_s": seconds, "repeats": repeats,
         "kernel": "native" if net.uses_native_kernel else "xla", "native_threads": config.native_threads,
-        "warmup_s": warmup,
+        "warmup_s": warmup, "networks_at_once": at_once,
         "network_s_per_s": n_networks * seconds / float(np.median(walls)),
         "network_s_per_cpu_s": n_networks * seconds / float(np.median(cpus)),
         "transient_network_s_per_s": n_networks * warmup / transient_s,
@@ -135,12 +140,15 @@ def main(argv=None) -> int:
     ap.add_argument("--kernel", default="auto", choices=["auto", "native", "xla"],
                     help="NetworkConfig.kernel (auto: the native CPU kernel when it builds)")
     ap.add_argument("--threads", type=int, default=1, help="NetworkConfig.native_threads")
+    ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
+                    help="networks stepped together, groups one after the other (default: the commands' default on "
+                         "this backend, 8 on a CPU; 0: one vmap of all)")
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker is not None:
         seconds = args.seconds or DEFAULT_SECONDS.get(args.worker, 1.0)
         print(json.dumps(worker(args.worker, args.dt, seconds, args.repeats, args.seed, args.warmup, args.kernel,
-                                args.threads)))
+                                args.threads, args.networks_at_once)))
         return 0
 
     installed = brian2_installed()
@@ -155,6 +163,8 @@ def main(argv=None) -> int:
         cmd = [sys.executable, os.path.abspath(__file__), "--worker", str(n), "--repeats", str(args.repeats),
                "--seed", str(args.seed), "--warmup", str(args.warmup), "--kernel", args.kernel,
                "--threads", str(args.threads)]
+        if args.networks_at_once is not None:
+            cmd += ["--networks-at-once", str(args.networks_at_once)]
         if args.dt is not None:
             cmd += ["--dt", str(args.dt)]
         if args.seconds is not None:
