@@ -6,7 +6,8 @@
 
 The process pins itself to one CPU and the native kernel to one thread. For each arm and network count it times,
 as medians of ``--repeats`` compiled runs of ``--seconds`` simulated seconds (one per network count), starting
-from the training state of networks 0..N-1 (the authors' metaparameters, babbling on):
+from the training state of networks 0..N-1 (the authors' metaparameters, babbling on), in groups of
+``--networks-at-once`` one after the other as the commands run them (default 8 on a CPU; 0: one vmap of all):
 
 * ``train``: the closed loop as training runs it (network, readout, arm, critic, R-STDP, babbling, scaling);
 * ``test``: the same loop without learning; ``learning`` = train - test;
@@ -60,7 +61,7 @@ def _median_time(fn, args, repeats: int) -> float:
     return statistics.median(times)
 
 
-def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
+def profile_one(arm: str, n: int, seconds: float, repeats: int, at_once: int = 8) -> dict:
     from jaxarm.arm import make_arm
     from jaxarm.config.arm import MusculoskeletalArmConfig
     from jaxarm.config.network import NetworkConfig
@@ -68,6 +69,7 @@ def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
     from jaxarm.loop import LoopConfig
     from jaxarm.network import native
     from jaxarm.network import readout as ro
+    from jaxarm.parallel import map_networks
     from jaxarm.task.config import TaskConfig
     from jaxarm.train import make_train
 
@@ -91,8 +93,8 @@ def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
 
     def closed(learn):
         def f(tr, st, k):
-            return jax.vmap(lambda t, s, kk: loop.run(t.wiring, s, kk, mp, intervals, learn)[0].net.spike_count)(
-                tr, st, k)
+            return map_networks(lambda t, s, kk: loop.run(t.wiring, s, kk, mp, intervals, learn)[0].net.spike_count,
+                                at_once)(tr, st, k)
         return f
 
     out["train"] = _median_time(closed(True), (carry.trained, state, run_keys), repeats)
@@ -106,7 +108,7 @@ def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
             def interval(s, _):     # the loop's arm steps of one interval (ClosedLoop._move_arm)
                 return jax.lax.scan(lambda x, _: (arm_model.step(x, uu), None), s, None, length=loop.arm_steps)[0], None
             return jax.lax.scan(interval, s0, None, length=intervals)[0]
-        return jax.vmap(f)
+        return map_networks(f, at_once)
 
     arm_state = jax.vmap(lambda _: loop.arm.init(loop.start_q))(jnp.arange(n))
     out["arm"] = _median_time(arm_only(loop.arm), (arm_state, u), repeats)
@@ -125,7 +127,7 @@ def profile_one(arm: str, n: int, seconds: float, repeats: int) -> dict:
                 r = ro.push(r, x)
                 return r, ro.excitation(config.network, r, v_em_max=mp.v_em_max, window_ms=mp.mcmd_spk_wd_ms)
             return jax.lax.scan(body, ro.init_readout(config.network), cs)[1]
-        return jax.vmap(one)(c)
+        return map_networks(one, at_once)(c)
 
     out["readout"] = _median_time(readout_only, (counts,), repeats)
 
@@ -195,6 +197,9 @@ def main(argv=None) -> int:
                     help="simulated seconds per timed run, one per --networks entry (or one for all)")
     ap.add_argument("--arm", nargs="+", default=["simple", "musculoskeletal"], choices=["simple", "musculoskeletal"])
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
+                    help="networks stepped together, groups one after the other (default: the commands' default on "
+                         "this backend, 8 on a CPU; 0: one vmap of all)")
     ap.add_argument("--json-out", default=None)
     ap.add_argument("--table-from", default=None, metavar="JSON",
                     help="print the table of a saved result file (e.g. docs/results/profile.json) and exit")
@@ -204,12 +209,18 @@ def main(argv=None) -> int:
             print(table(json.load(f)["results"]))
         return 0
     seconds = args.seconds if len(args.seconds) == len(args.networks) else args.seconds[:1] * len(args.networks)
-    results = [profile_one(arm, n, s, args.repeats) for arm in args.arm for n, s in zip(args.networks, seconds)]
+    if args.networks_at_once is None:
+        from jaxarm.parallel import CPU_NETWORKS_AT_ONCE
+
+        args.networks_at_once = CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
+    results = [profile_one(arm, n, s, args.repeats, args.networks_at_once)
+               for arm in args.arm for n, s in zip(args.networks, seconds)]
     print(table(results))
     out = {"date": time.strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {os.cpu_count()} CPUs "
            "(pinned to one)", "command": "python benchmarks/profile.py " + " ".join(sys.argv[1:] if argv is None
                                                                                    else argv),
-           "jax": jax.__version__, "block_input_share": block_input_share(results), "by_run": by_run(results),
+           "jax": jax.__version__, "networks_at_once": args.networks_at_once,
+           "block_input_share": block_input_share(results), "by_run": by_run(results),
            "results": results}
     if args.json_out:
         with open(args.json_out, "w") as f:
