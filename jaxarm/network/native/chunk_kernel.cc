@@ -196,8 +196,9 @@ inline void store_flag(uint8_t* p, vi m) {
 // Errors against the exact functions, measured in tests/test_native_math.py over their whole float ranges: at most
 // 0.97 ulp (exp), 1.5 ulp (expm1, near x = ln2 / 2) and 1.1 ulp (log1p); mean 0.2-0.3 ulp.
 namespace fastmath {
-// exp and expm1 are templates over a lane type: float, or simd::vf (eight floats in GCC/Clang vector extensions,
-// for the cells' update in blocks). Every lane takes exactly the scalar's operations, so both give the same bits.
+// exp, expm1, log and log1p are templates over a lane type: float, or simd::vf (eight floats in GCC/Clang vector
+// extensions: the cells' update and delivery's event loads in blocks). Every lane takes exactly the scalar's
+// operations, selects in place of branches, so both give the same bits (tests/test_native_math.py).
 template <class T>
 inline T exp(T x) {
   x = simd::min(simd::max(x, simd::splat<T>(-87.3f)), simd::splat<T>(88.7f));
