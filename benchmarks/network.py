@@ -9,10 +9,11 @@ Each network size runs in its own process (so peak RSS is that size's, and compi
 drive is the training drive of experiments/network_rates.py (simple arm in closed loop, motor babbling, no
 plasticity), with plasticity bookkeeping (tags on every postsynaptic spike) on; every network has its own wiring and
 noise. The networks run in groups of ``--networks-at-once`` one after the other, as the commands run them on one
-device (default: theirs, 8 on a CPU; 0: one vmap of all). The networks first run ``--warmup`` simulated seconds (untimed: the start of every run is a synchronous
-transient — all P cells fire at 1 ms — that costs extra spike-list passes; it is timed separately as
-``transient_network_s_per_s``), then timed runs continue from there. Throughput = networks x simulated seconds /
-wall seconds of the compiled run (median over repeats), compile excluded and reported separately.
+device (default: theirs, 8 on a CPU; 0: one vmap of all). The networks first run ``--warmup`` simulated seconds
+(untimed: the start of every run is a synchronous transient — all P cells fire at 1 ms — that costs extra
+spike-list passes; it is timed separately as ``transient_network_s_per_s``), then timed runs continue from there.
+Throughput = networks x simulated seconds / wall seconds of the compiled run (median over repeats), compile
+excluded and reported separately.
 
 Brian2 comparison (``--brian2``; done by default whenever brian2 is installed, ``--no-brian2`` skips it): the same
 network in Brian2's C++ standalone mode (benchmarks/brian2_network.py: same cells, same synapses as the wiring of
@@ -51,10 +52,10 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
 
     from experiments.network_rates import make_training_drive
     from jaxarm.network import Network, NetworkConfig
-    from jaxarm.parallel import CPU_NETWORKS_AT_ONCE, map_networks
+    from jaxarm.parallel import map_networks, networks_at_once
 
     if at_once is None:
-        at_once = CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
+        at_once = networks_at_once()
 
     config = NetworkConfig(kernel=kernel, native_threads=threads)
     if dt_ms is not None:

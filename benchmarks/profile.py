@@ -61,7 +61,7 @@ def _median_time(fn, args, repeats: int) -> float:
     return statistics.median(times)
 
 
-def profile_one(arm: str, n: int, seconds: float, repeats: int, at_once: int = 8) -> dict:
+def profile_one(arm: str, n: int, seconds: float, repeats: int, at_once: int) -> dict:
     from jaxarm.arm import make_arm
     from jaxarm.config.arm import MusculoskeletalArmConfig
     from jaxarm.config.network import NetworkConfig
@@ -210,9 +210,9 @@ def main(argv=None) -> int:
         return 0
     seconds = args.seconds if len(args.seconds) == len(args.networks) else args.seconds[:1] * len(args.networks)
     if args.networks_at_once is None:
-        from jaxarm.parallel import CPU_NETWORKS_AT_ONCE
+        from jaxarm.parallel import networks_at_once
 
-        args.networks_at_once = CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
+        args.networks_at_once = networks_at_once()
     results = [profile_one(arm, n, s, args.repeats, args.networks_at_once)
                for arm in args.arm for n, s in zip(args.networks, seconds)]
     print(table(results))

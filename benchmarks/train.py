@@ -68,12 +68,12 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from jaxarm.config.network import NetworkConfig
 
-    from jaxarm.parallel import CPU_NETWORKS_AT_ONCE
+    from jaxarm.parallel import networks_at_once
 
     if args.threads is None:
         args.threads = NetworkConfig().native_threads
     if args.networks_at_once is None:
-        args.networks_at_once = CPU_NETWORKS_AT_ONCE if jax.default_backend() == "cpu" else 0
+        args.networks_at_once = networks_at_once()
     out = {"network_s_per_s": {}, "compile_s": {},
            "config": vars(args) | {"cpu_count": os.cpu_count(), "machine": platform.machine(), "jax": jax.__version__,
                                    "backend": jax.default_backend()}}
