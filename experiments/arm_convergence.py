@@ -1,6 +1,6 @@
 """Is the musculoskeletal arm's integration converged, and do its two backends agree on smooth inputs?
 
-    python experiments/arm_convergence.py [--seeds 7 ... 26] [--muscle-substeps 10] [--newton-iterations 2]
+    python experiments/arm_convergence.py [--seeds 7 ... 26] [--muscle-substeps 10] [--newton-iterations 3]
         [--integrators linearly_implicit backward_euler] [--inputs step ramp random held maximal]
         [--backends fast mjx] [--sweep] [--json-out FILE]
 
@@ -19,7 +19,7 @@ References, per backend, run in float64 (float32 rounding over 20,000 or more sh
 * ``converged``: skeleton steps of 0.05 ms, each with 5 linearly-implicit muscle steps of 0.01 ms (halving both
   moves the path by < 0.01 deg on the random inputs);
 * ``muscles_converged``: the arm's own 1 ms skeleton step with 100 linearly-implicit muscle steps of 0.01 ms: only
-  the muscles converged (the skeleton's coupling as the default's: the mean of the sub-steps' forces).
+  the muscles converged (the skeleton's coupling as ``linearly_implicit``'s: the mean of the sub-steps' forces).
 
 For each integrator under test (float32, the arm's own precision: ``linearly_implicit`` with ``--muscle-substeps``,
 ``backward_euler`` with ``--newton-iterations``) prints JSON with, per input set, the median and max over its inputs
@@ -132,13 +132,14 @@ def write_references(path: str, backends, inputs, seeds) -> None:
     arrays = {}
     for b in backends:
         for ref, (substeps, muscle_substeps) in REFERENCES.items():
-            arm = MusculoskeletalArm(b, MusculoskeletalArmConfig(substeps=substeps, muscle_substeps=muscle_substeps))
+            arm = MusculoskeletalArm(b, MusculoskeletalArmConfig(
+                substeps=substeps, muscle_integrator="linearly_implicit", muscle_substeps=muscle_substeps))
             q, force = paths(arm, START_POSTURE_RAD, us, pecm1=True)
             arrays[f"{b}/{ref}"] = np.concatenate([q, force[..., None]], axis=-1)
     np.savez(path, **arrays)
 
 
-def convergence(backends=("fast", "mjx"), seeds=range(7, 27), muscle_substeps: int = 10, newton_iterations: int = 2,
+def convergence(backends=("fast", "mjx"), seeds=range(7, 27), muscle_substeps: int = 10, newton_iterations: int = 3,
                 integrators=MUSCLE_INTEGRATORS, inputs=INPUTS) -> dict:
     seeds = list(seeds)
     refs = reference_paths(backends, inputs, seeds)
@@ -236,7 +237,7 @@ def main(argv=None) -> int:
     result = convergence(args.backends, args.seeds, args.muscle_substeps, args.newton_iterations, args.integrators,
                          args.inputs)
     if args.sweep:
-        result["pecm1_slack_sweep"] = pecm1_slack_sweep((args.newton_iterations, 8), args.muscle_substeps)
+        result["pecm1_slack_sweep"] = pecm1_slack_sweep(sorted({2, args.newton_iterations, 8}), args.muscle_substeps)
     text = json.dumps(result, indent=1)
     print(text)
     if args.json_out:

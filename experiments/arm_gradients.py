@@ -118,7 +118,8 @@ def smooth_vs_default(seeds) -> dict:
     with jax.enable_x64(False):
         default = joint_paths(MusculoskeletalArm("fast", MusculoskeletalArmConfig()), us)
         smooth = joint_paths(MusculoskeletalArm("fast", MusculoskeletalArmConfig(smooth=True)), us)
-        fine = joint_paths(MusculoskeletalArm("fast", MusculoskeletalArmConfig(substeps=20, muscle_substeps=1)), us)
+        fine = joint_paths(MusculoskeletalArm("fast", MusculoskeletalArmConfig(
+            substeps=20, muscle_integrator="linearly_implicit", muscle_substeps=1)), us)
     per_seed = lambda a, b: np.degrees(np.abs(a - b)).reshape(len(seeds), -1).max(axis=1).round(4).tolist()  # noqa: E731
     return {"seeds": list(seeds), "smooth_vs_default_deg": per_seed(smooth, default),
             "default_vs_converged_deg": per_seed(default, fine), "smooth_vs_converged_deg": per_seed(smooth, fine)}

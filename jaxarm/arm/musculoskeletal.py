@@ -7,9 +7,10 @@ One step advances ``config.dt_s`` (1 ms by default) of simulated time (SI units 
 2. each muscle's activation and fibre length advance along the muscle-tendon length extrapolated from the current
    length and its rate (moment arms times joint velocities) (:mod:`jaxarm.arm.muscle`): the fibre ODE is stiff and
    kinked where a tendon goes slack, and one 1 ms linearly-implicit step of it chatters. By default
-   (``config.muscle_integrator="linearly_implicit"``) in ``config.muscle_substeps`` linearly-implicit steps (0.1 ms
-   by default, the authors' integrator step; see ``MusculoskeletalArmConfig.muscle_substeps``); with
-   ``"backward_euler"`` in one fully implicit step solved by ``config.muscle_newton_iterations`` Newton iterations;
+   (``config.muscle_integrator="backward_euler"``) in one fully implicit step solved by
+   ``config.muscle_newton_iterations`` Newton iterations; with ``"linearly_implicit"`` in
+   ``config.muscle_substeps`` linearly-implicit steps (0.1 ms for 10, the authors' integrator step; see
+   ``MusculoskeletalArmConfig.muscle_substeps``);
 3. the tendon forces averaged over those muscle steps (backward Euler: at the step's midpoint) times the moment arms
    give joint torques; beyond the joint ranges a penalty spring-damper adds limit torques (the original's joint-limit
    force subsystem; MuJoCo's constraint solver stays off);

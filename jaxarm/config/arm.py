@@ -79,31 +79,33 @@ class MusculoskeletalArmConfig(_JointRanges):
         dt_s: arm step, s. The original integrated at 0.1 ms inside 10 ms updates; 1 ms is the paper's figure and
             is what our linearly-implicit muscle step is tested stable at.
         substeps: integration substeps per step (dt_s / substeps each), of skeleton and muscles alike.
-        muscle_substeps: steps of the muscles' fibre-length ODE per (sub)step of the skeleton, along the path
-            lengths extrapolated linearly over the step (default 10: 0.1 ms, the authors' integrator step). The
+        muscle_substeps: with ``muscle_integrator="linearly_implicit"`` only: steps of the muscles' fibre-length
+            ODE per (sub)step of the skeleton, along the path lengths extrapolated linearly over the step (10: 0.1
+            ms, the authors' integrator step; the default integrator before backward Euler). The
             fibre ODE is stiff (PECM1's tendon is 2.8 mm) and kinked (zero tendon force when slack): taken at
             1 ms it chatters (PECM1's tendon force jumped between 0 and 2850 N from one step to the next) and over
             1 s of smooth random excitation the arm's path was off by 13 deg (median of 20 inputs; 46 deg at most)
             from a converged 0.05 ms run, and 1e-4 rad at the start moved it by 7 deg. With 10 the path is within
             0.19 deg (median of 20 inputs; 0.44 at most) of a converged float64 run (0.05 ms skeleton, 0.01 ms
             muscle steps), and a 1e-4 rad start perturbation moves it by < 0.01 deg (``python
-            experiments/arm_convergence.py``). Used by ``muscle_integrator="linearly_implicit"`` only;
-            ``"backward_euler"`` reaches 0.06 / 0.12 deg at 1 ms in a quarter of the time.
+            experiments/arm_convergence.py``). ``"backward_euler"`` (the default) is closer still at 1 ms, in a
+            third of the time.
         muscle_integrator: how the muscles' fibre lengths advance over each (sub)step of the skeleton.
-            ``"linearly_implicit"`` (default): ``muscle_substeps`` diagonal linearly-implicit Euler steps
-            (``jaxarm.arm.muscle.step``); the skeleton gets the mean of their end forces. ``"backward_euler"``: one
+            ``"backward_euler"`` (default): one
             fully implicit step over the whole (sub)step, solved by ``muscle_newton_iterations`` safeguarded Newton
             iterations from the fibre length that keeps each tendon's length
             (``jaxarm.arm.muscle.step_backward_euler``); the skeleton gets the tendon forces at the step's midpoint
-            (the mean of the start and end fibre and path lengths). With 2 iterations at 1 ms its joint paths are
-            closer to a converged run (float64, 0.05 ms skeleton and 0.01 ms muscle steps) than ten 0.1 ms
-            linearly-implicit sub-steps on every input set measured (1 s of step, ramp, smooth random, 10 ms-held
-            random and maximal excitations; smooth random: 0.06 deg median, 0.12 max, against 0.19 and 0.44),
-            PECM1's tendon force does not chatter, and the arm runs about 4 times as many arm-steps per CPU second
-            (``python experiments/arm_convergence.py``, ``python benchmarks/arm.py``;
-            ``docs/results/muscle_integrator.json``). A model change: not the default until the headline results
-            are rerun with it.
+            (the mean of the start and end fibre and path lengths). At 1 ms its joint paths are closer to a
+            converged run (float64, 0.05 ms skeleton and 0.01 ms muscle steps) than ten 0.1 ms linearly-implicit
+            sub-steps on every input set measured (1 s of step, ramp, smooth random, 10 ms-held random and maximal
+            excitations), PECM1's tendon force does not chatter, and the arm runs about 3 times as many arm-steps
+            per second (``python experiments/arm_convergence.py``, ``python benchmarks/arm.py``;
+            ``docs/results/muscle_integrator.json``). ``"linearly_implicit"``: ``muscle_substeps`` diagonal
+            linearly-implicit Euler steps (``jaxarm.arm.muscle.step``); the skeleton gets the mean of their end
+            forces (the default before 2026-12-06; docs/changelog.md).
         muscle_newton_iterations: Newton iterations of the ``"backward_euler"`` muscle step (ignored otherwise).
+            3 by default: 2 already beat ten sub-steps on the joint paths, but leave a one-step force error of 0.24
+            of F_max on PECM1 taking up slack fast (ten sub-steps: 0.13).
         time_scale_s, activation1, activation2: defaults for the Schutte activation ODE where the .osim stores 0
             (all 22 muscles do; the authors' simulator used unpublished internal defaults). We use OpenSim's
             Schutte1993Muscle defaults (0.1 s, 7.667, 1.459854): the paper's tau = 100 ms scale, activation time
@@ -136,8 +138,8 @@ class MusculoskeletalArmConfig(_JointRanges):
     dt_s: float = 0.001
     substeps: int = 1
     muscle_substeps: int = 10
-    muscle_integrator: str = "linearly_implicit"
-    muscle_newton_iterations: int = 2
+    muscle_integrator: str = "backward_euler"
+    muscle_newton_iterations: int = 3
     time_scale_s: float = 0.1
     activation1: float = 7.667
     activation2: float = 1.459854
