@@ -1,7 +1,7 @@
 """Arm throughput: arm-steps per second for both musculoskeletal backends and muscle integrators at 1, 60, 300 arms.
 
     python benchmarks/arm.py --json [--batches 1 60 300] [--steps 1000] [--repeats 5]
-        [--integrators linearly_implicit backward_euler] [--newton-iterations 2] [--backends fast mjx]
+        [--integrators linearly_implicit backward_euler] [--newton-iterations 3] [--backends fast mjx]
         [--json-out FILE]
 
 One arm-step = 1 ms of one arm. Each measurement jits ``vmap`` over arms of a ``lax.scan`` over ``--steps`` steps

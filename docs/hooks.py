@@ -69,6 +69,9 @@ def result(spec: str) -> str:
     name, path, fmt = parts[0], parts[1], parts[2] if len(parts) == 3 else ""
     parent, value = None, _load(name)
     for key in path.split("."):
+        if isinstance(value, list) and key.isdigit() and int(key) < len(value):  # a list's item by its index
+            parent, value = value, value[int(key)]
+            continue
         if not isinstance(value, dict) or key not in value:
             raise ResultError(f"docs/results/{name}: no field {path!r} (at {key!r})")
         parent, value = value, value[key]

@@ -2,6 +2,7 @@
 the command-line reference lists every option; every number a page takes from a result file is the file's."""
 import argparse
 import importlib.util
+import json
 import re
 from pathlib import Path
 
@@ -143,3 +144,12 @@ def test_a_tutorials_links_to_the_docs_resolve_on_the_site():
                 continue
             assert target.startswith("../docs/"), f"{path.name}: {target} (link the docs as ../docs/PAGE.md)"
             assert (ROOT / "notebooks" / target.split("#")[0]).exists(), f"{path.name}: {target}"
+
+
+def test_a_result_path_indexes_a_list_by_its_position():
+    data = json.loads((ROOT / "docs/results/wam_tracking_original.json").read_text())
+    per_seed = data["summary"]["packets_per_seed"]
+    received = hooks.result("wam_tracking_original.json : summary.packets_per_seed.2.received")
+    assert received == str(per_seed[2]["received"])
+    with pytest.raises(hooks.ResultError, match=f"at '{len(per_seed)}'"):
+        hooks.result(f"wam_tracking_original.json : summary.packets_per_seed.{len(per_seed)}.received")
