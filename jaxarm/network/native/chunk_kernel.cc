@@ -385,24 +385,31 @@ void add_noise(int64_t n, int64_t kmax, uint32_t s, const uint32_t* lane_key, co
   }
 }
 
-struct CellConstantsView {   // per-cell constants (native_cell_floats) and the physics, for cell_update
-  const float *rmp, *vth, *vblock, *d_ampa, *d_nmda, *d_gprox, *d_gdist, *d_ahp, *d_rr, *d_rr_first;
+struct CellConstantsView {   // per-cell constants (native_cell_floats) and the physics, for the cells' passes
+  const float *rmp, *vth, *vblock, *ahpwt, *post_excess, *d_ampa, *d_nmda, *d_gprox, *d_gdist, *d_ahp, *d_rr,
+      *d_rr_first;
   const int32_t* n_ref;
   float e_ampa, e_nmda, e_gaba, neg_inv_ampa, inv_gaba, inv_ampa, inv_nmda, neg_mg_slope, mg_ratio, vm_min, vm_max;
 };
 
 // One clock step of every cell (jaxarm.network.cell.cell_step): decay of every component, refractory bookkeeping,
 // V (the deviation every driving force of this step uses), the jumps of this step's input in[4 n] (AMPA, NMDA,
-// GABA-prox, GABA-dist: loads with Seq, weights without), the threshold test into spiked[n].
+// GABA-prox, GABA-dist: loads with Seq, weights without), the threshold test into spiked[n] and a spike's own
+// effects (AHP jump, threshold excess, refractory count).
+// The cells' data (7 state arrays, 13 constant arrays, V and the input) is larger than the L1 cache, so every pass
+// over the cells streams it from L2: the threshold test of step t and the decay of step t + 1 go in one pass (the
+// spike's effects between them, as selects), which reads the state and the constants once for both. Nothing in
+// between reads or writes the cells (delivery, tags and the next step's noise touch the ring and the spike times
+// only), so the arithmetic, and the bits, are those of the one-cell form in its order.
 // A receptor's jump needs transcendental functions, but only where that receptor has input this step: in the
 // paper's network about half of the blocks of eight cells have AMPA input in a step, a quarter NMDA and a fifth to
 // a quarter each GABA (block_input_share in docs/results/profile.json, from the profiling build's block counters).
-// So the blocks go in three passes: (1) decay, V and,
-// per receptor, the list of blocks with input; (2) per receptor, the jumps of its listed blocks only (with selects
-// for the cells of a block without input, which keep their component); (3) the threshold test. Lists instead of a
-// branch per block: the branches, taken 20-50 % of the time at random, cost more in mispredictions than the skipped
-// work saved (measured). Every lane takes exactly the operations of the one-cell form, so the bits are those of
-// computing every jump densely. The last n % kLanes cells take the same stages one cell at a time.
+// So after the input of step t is complete, a light pass over it lists, per receptor, the blocks with input, and the
+// jumps are computed for the listed blocks only (with selects for the cells of a block without input, which keep
+// their component). Lists instead of a branch per block: the branches, taken 20-50 % of the time at random, cost
+// more in mispredictions than the skipped work saved (measured). Every lane takes exactly the operations of the
+// one-cell form, so the bits are those of computing every jump densely. The last n % kLanes cells take the same
+// stages one cell at a time.
 // PerEvent: NetworkConfig.crossing = "per_event"; OnEvent: threshold_test = "on_event".
 struct CellArrays {  // the cells' state (updated in place), this step's input, and the per-step scratch
   float *ampa, *nmda, *gprox, *gdist, *ahp, *excess;
@@ -416,38 +423,55 @@ struct CellArrays {  // the cells' state (updated in place), this step's input, 
 
 enum Receptor { kRecAmpa, kRecNmda, kRecGabaProx, kRecGabaDist };
 
-// (1) decay, refractory bookkeeping and V of the lanes at i; with n_listed, i appended to the list of every receptor
-// with input in some lane
-template <class T>
-ALWAYS_INLINE void decay_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c, int32_t* n_listed) {
+// The lanes at i: with Threshold, the threshold test of the last step (its input in s.in, its V in s.v) and the
+// spikes' effects; with Decay, this step's decay, refractory bookkeeping and V.
+template <class T, bool PerEvent, bool OnEvent, bool Threshold, bool Decay>
+ALWAYS_INLINE void cell_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
   using simd::load;
   typedef typename simd::IntOf<T>::type I;
   const int64_t n = s.n;
-  const T a = load<T>(s.ampa + i) * load<T>(c.d_ampa + i), b = load<T>(s.nmda + i) * load<T>(c.d_nmda + i);
-  const T g = load<T>(s.gprox + i) * load<T>(c.d_gprox + i), d = load<T>(s.gdist + i) * load<T>(c.d_gdist + i);
-  const T e = load<T>(s.ahp + i) * load<T>(c.d_ahp + i);
-  const I n_ref = load<I>(c.n_ref + i);
-  const I sn = simd::min(load<I>(s.since + i), simd::splat_int<I>(kSinceMax - 1)) + 1;
-  const T rr = sn > n_ref ? load<T>(c.d_rr + i) : (sn == n_ref ? load<T>(c.d_rr_first + i) : simd::splat<T>(1.0f));
   const T rmp = load<T>(c.rmp + i);
-  simd::store(s.v + i, simd::min(simd::max(a + b + g + d + e, rmp), -rmp));
-  simd::store(s.ampa + i, a);
-  simd::store(s.nmda + i, b);
-  simd::store(s.gprox + i, g);
-  simd::store(s.gdist + i, d);
-  simd::store(s.ahp + i, e);
-  simd::store(s.excess + i, load<T>(s.excess + i) * rr);
-  simd::store(s.since + i, sn);
-  if (n_listed == nullptr) return;
-  const int64_t per_list = n / simd::kLanes;
-  for (int r = 0; r < 4; ++r) {   // append i to receptor r's list if any lane has input (no branch)
-    const bool has = simd::any(load<T>(s.in + r * n + i) != 0.0f);
-    s.blocks[r * per_list + n_listed[r]] = int32_t(i);
-    n_listed[r] += has;
+  T a = load<T>(s.ampa + i), b = load<T>(s.nmda + i), g = load<T>(s.gprox + i), d = load<T>(s.gdist + i);
+  T e = load<T>(s.ahp + i), ex = load<T>(s.excess + i);
+  I sn = load<I>(s.since + i);
+  const I n_ref = load<I>(c.n_ref + i);
+  if constexpr (Threshold) {
+    const T vth = load<T>(c.vth + i), vblock = load<T>(c.vblock + i);
+    // summed from rmp on, in the one-cell form's order (float addition is not associative: another order moves V
+    // in its last bit, and once in a long run a spike with it)
+    const T vm = simd::min(simd::max(rmp + a + b + g + d + e, simd::splat<T>(c.vm_min)), simd::splat<T>(c.vm_max));
+    auto spike = (sn >= n_ref) & (vm > vth + ex) & (vm <= vblock);
+    if constexpr (PerEvent)   // below threshold before this step's input, above Vblock after it: crossed
+      spike |= (sn >= n_ref) & (vm > vblock) & (rmp + load<T>(s.v + i) <= vth + ex);
+    if constexpr (OnEvent)    // the original tests only on an arriving event
+      spike &= (load<T>(s.in + i) != 0.0f) | (load<T>(s.in + n + i) != 0.0f) |
+               (load<T>(s.in + 2 * n + i) != 0.0f) | (load<T>(s.in + 3 * n + i) != 0.0f);
+    simd::store_flag(s.spiked + i, spike);
+    e = spike ? e - load<T>(c.ahpwt + i) : e;
+    ex = spike ? load<T>(c.post_excess + i) : ex;
+    sn = spike ? simd::splat_int<I>(0) : sn;
   }
+  if constexpr (Decay) {
+    a = a * load<T>(c.d_ampa + i);
+    b = b * load<T>(c.d_nmda + i);
+    g = g * load<T>(c.d_gprox + i);
+    d = d * load<T>(c.d_gdist + i);
+    e = e * load<T>(c.d_ahp + i);
+    sn = simd::min(sn, simd::splat_int<I>(kSinceMax - 1)) + 1;
+    const T rr = sn > n_ref ? load<T>(c.d_rr + i) : (sn == n_ref ? load<T>(c.d_rr_first + i) : simd::splat<T>(1.0f));
+    ex = ex * rr;
+    simd::store(s.v + i, simd::min(simd::max(a + b + g + d + e, rmp), -rmp));
+    simd::store(s.ampa + i, a);
+    simd::store(s.nmda + i, b);
+    simd::store(s.gprox + i, g);
+    simd::store(s.gdist + i, d);
+  }
+  simd::store(s.ahp + i, e);
+  simd::store(s.excess + i, ex);
+  simd::store(s.since + i, sn);
 }
 
-// (2) receptor R's jumps in the lanes at i (an entry of R's list)
+// receptor R's jumps in the lanes at i (an entry of R's list)
 template <class T, bool Seq, Receptor R>
 ALWAYS_INLINE void jump_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
   using simd::load;
@@ -471,79 +495,65 @@ ALWAYS_INLINE void jump_lanes(int64_t i, const CellArrays& s, const CellConstant
   }
 }
 
-// (3) the threshold test of the lanes at i
-template <class T, bool PerEvent, bool OnEvent>
-ALWAYS_INLINE void threshold_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
-  using simd::load;
-  typedef typename simd::IntOf<T>::type I;
-  const int64_t n = s.n;
-  const T rmp = load<T>(c.rmp + i), vth = load<T>(c.vth + i), vblock = load<T>(c.vblock + i);
-  const T ex = load<T>(s.excess + i);
-  const I sn = load<I>(s.since + i), n_ref = load<I>(c.n_ref + i);
-  // summed from rmp on, in the one-cell form's order (float addition is not associative: another order moves V in
-  // its last bit, and once in a long run a spike with it)
-  const T vm = simd::min(simd::max(rmp + load<T>(s.ampa + i) + load<T>(s.nmda + i) + load<T>(s.gprox + i) +
-                                       load<T>(s.gdist + i) + load<T>(s.ahp + i),
-                                   simd::splat<T>(c.vm_min)),
-                         simd::splat<T>(c.vm_max));
-  auto spike = (sn >= n_ref) & (vm > vth + ex) & (vm <= vblock);
-  if constexpr (PerEvent)   // below threshold before this step's input, above Vblock after it: crossed
-    spike |= (sn >= n_ref) & (vm > vblock) & (rmp + load<T>(s.v + i) <= vth + ex);
-  if constexpr (OnEvent)    // the original tests only on an arriving event
-    spike &= (load<T>(s.in + i) != 0.0f) | (load<T>(s.in + n + i) != 0.0f) | (load<T>(s.in + 2 * n + i) != 0.0f) |
-             (load<T>(s.in + 3 * n + i) != 0.0f);
-  simd::store_flag(s.spiked + i, spike);
-}
-
-template <class T, bool Seq>
-inline void jumps_listed(const CellArrays& s, const CellConstantsView& c, const int32_t* n_listed) {
-  const int64_t per_list = s.n / simd::kLanes;
-  const int32_t* list = s.blocks;
-  for (int32_t k = 0; k < n_listed[kRecAmpa]; ++k) jump_lanes<T, Seq, kRecAmpa>(list[k], s, c);
-  list += per_list;
-  for (int32_t k = 0; k < n_listed[kRecNmda]; ++k) jump_lanes<T, Seq, kRecNmda>(list[k], s, c);
-  list += per_list;
-  for (int32_t k = 0; k < n_listed[kRecGabaProx]; ++k) jump_lanes<T, Seq, kRecGabaProx>(list[k], s, c);
-  list += per_list;
-  for (int32_t k = 0; k < n_listed[kRecGabaDist]; ++k) jump_lanes<T, Seq, kRecGabaDist>(list[k], s, c);
-}
-
-template <bool PerEvent, bool Seq, bool OnEvent>
-void cell_update(const CellArrays& arrays, const CellConstantsView& consts) {
+// Threshold (the last step's test and spikes' effects) and / or Decay (this step's) of every cell
+template <bool PerEvent, bool OnEvent, bool Threshold, bool Decay>
+void cell_pass(const CellArrays& arrays, const CellConstantsView& consts) {
   const CellArrays s = arrays;          // local copies: the stores through s's pointers cannot change them
   const CellConstantsView c = consts;
   const int64_t full = s.n - s.n % simd::kLanes;
+  for (int64_t i = 0; i < full; i += simd::kLanes) cell_lanes<simd::vf, PerEvent, OnEvent, Threshold, Decay>(i, s, c);
+  for (int64_t i = full; i < s.n; ++i) cell_lanes<float, PerEvent, OnEvent, Threshold, Decay>(i, s, c);
+}
+
+template <bool PerEvent>
+void cell_pass(bool on_event, bool threshold, bool decay, const CellArrays& s, const CellConstantsView& c) {
+  // direct calls: passing the instantiations through a generic lambda (a function pointer) made the kernel 3.4x
+  // slower (2026-12-05, benchmarks/network.py at one network: 16 against 56 network-s per CPU-second)
+  if (on_event) {
+    if (threshold && decay) cell_pass<PerEvent, true, true, true>(s, c);
+    else if (threshold) cell_pass<PerEvent, true, true, false>(s, c);
+    else cell_pass<PerEvent, true, false, true>(s, c);
+  } else {
+    if (threshold && decay) cell_pass<PerEvent, false, true, true>(s, c);
+    else if (threshold) cell_pass<PerEvent, false, true, false>(s, c);
+    else cell_pass<PerEvent, false, false, true>(s, c);
+  }
+}
+
+// This step's jumps, once its input is complete: per receptor, the list of the blocks with input in some lane (no
+// branch: every block is written, the count advances where it has input), then the listed blocks' jumps
+template <bool Seq>
+void jumps(const CellArrays& arrays, const CellConstantsView& consts) {
+  const CellArrays s = arrays;
+  const CellConstantsView c = consts;
+  const int64_t n = s.n;
+  const int64_t full = n - n % simd::kLanes;
+  const int64_t per_list = n / simd::kLanes;
   int32_t n_listed[4] = {0, 0, 0, 0};
-  for (int64_t i = 0; i < full; i += simd::kLanes) decay_lanes<simd::vf>(i, s, c, n_listed);
+  for (int64_t i = 0; i < full; i += simd::kLanes)
+    for (int r = 0; r < 4; ++r) {
+      const bool has = simd::any(simd::load<simd::vf>(s.in + r * n + i) != 0.0f);
+      s.blocks[r * per_list + n_listed[r]] = int32_t(i);
+      n_listed[r] += has;
+    }
   PROF_COUNT(cell_blocks, full / simd::kLanes)
   PROF_COUNT(blocks_ampa, n_listed[kRecAmpa])
   PROF_COUNT(blocks_nmda, n_listed[kRecNmda])
   PROF_COUNT(blocks_gaba_prox, n_listed[kRecGabaProx])
   PROF_COUNT(blocks_gaba_dist, n_listed[kRecGabaDist])
-  jumps_listed<simd::vf, Seq>(s, c, n_listed);
-  for (int64_t i = 0; i < full; i += simd::kLanes) threshold_lanes<simd::vf, PerEvent, OnEvent>(i, s, c);
-  for (int64_t i = full; i < s.n; ++i) {   // the tail, one cell at a time through the same stages
-    decay_lanes<float>(i, s, c, nullptr);
+  const int32_t* list = s.blocks;
+  for (int32_t k = 0; k < n_listed[kRecAmpa]; ++k) jump_lanes<simd::vf, Seq, kRecAmpa>(list[k], s, c);
+  list += per_list;
+  for (int32_t k = 0; k < n_listed[kRecNmda]; ++k) jump_lanes<simd::vf, Seq, kRecNmda>(list[k], s, c);
+  list += per_list;
+  for (int32_t k = 0; k < n_listed[kRecGabaProx]; ++k) jump_lanes<simd::vf, Seq, kRecGabaProx>(list[k], s, c);
+  list += per_list;
+  for (int32_t k = 0; k < n_listed[kRecGabaDist]; ++k) jump_lanes<simd::vf, Seq, kRecGabaDist>(list[k], s, c);
+  for (int64_t i = full; i < n; ++i) {   // the tail, one cell at a time
     if (s.in[i] != 0.0f) jump_lanes<float, Seq, kRecAmpa>(i, s, c);
-    if (s.in[s.n + i] != 0.0f) jump_lanes<float, Seq, kRecNmda>(i, s, c);
-    if (s.in[2 * s.n + i] != 0.0f) jump_lanes<float, Seq, kRecGabaProx>(i, s, c);
-    if (s.in[3 * s.n + i] != 0.0f) jump_lanes<float, Seq, kRecGabaDist>(i, s, c);
-    threshold_lanes<float, PerEvent, OnEvent>(i, s, c);
-  }
-}
-
-template <bool PerEvent>
-void cell_update(bool seq, bool on_event, const CellArrays& s, const CellConstantsView& c) {
-  // direct calls: passing the instantiations through a generic lambda (a function pointer) made the kernel 3.4x
-  // slower (2026-12-05, benchmarks/network.py at one network: 16 against 56 network-s per CPU-second)
-  if (seq && !on_event) {
-    cell_update<PerEvent, true, false>(s, c);
-  } else if (seq) {
-    cell_update<PerEvent, true, true>(s, c);
-  } else if (!on_event) {
-    cell_update<PerEvent, false, false>(s, c);
-  } else {
-    cell_update<PerEvent, false, true>(s, c);
+    if (s.in[n + i] != 0.0f) jump_lanes<float, Seq, kRecNmda>(i, s, c);
+    if (s.in[2 * n + i] != 0.0f) jump_lanes<float, Seq, kRecGabaProx>(i, s, c);
+    if (s.in[3 * n + i] != 0.0f) jump_lanes<float, Seq, kRecGabaDist>(i, s, c);
   }
 }
 
@@ -679,9 +689,10 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   std::vector<int32_t> block_buf(4 * (n / simd::kLanes) + 1);
   std::vector<int32_t> fired;
   fired.reserve(n);
-  const CellConstantsView cc{rmp,    vth,    vblock,       d_ampa,   d_nmda,   d_gprox,      d_gdist,  d_ahp,
-                             d_rr,   d_rr_first, n_ref,    e_ampa,   a.e_nmda,  e_gaba,       neg_inv_ampa,
-                             inv_gaba, inv_ampa, inv_nmda, neg_mg_slope, mg_ratio, a.vm_min, a.vm_max};
+  const CellConstantsView cc{rmp,      vth,      vblock,       ahpwt,    post_excess, d_ampa,  d_nmda,
+                             d_gprox,  d_gdist,  d_ahp,        d_rr,     d_rr_first,  n_ref,   e_ampa,
+                             a.e_nmda, e_gaba,   neg_inv_ampa, inv_gaba, inv_ampa,    inv_nmda, neg_mg_slope,
+                             mg_ratio, a.vm_min, a.vm_max};
   // a fired cell's row of weights (loads), gathered then converted vectorised
   int64_t max_width = 0;
   for (const Tables& tb : groups) max_width = std::max(max_width, tb.out_width);
@@ -693,113 +704,125 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   const bool limited = any_limited(3 * n, events_left);  // the test's EM noise, or nothing to spend
   PROF_MARK(kPWindow)
   PROF_COUNT(steps, n_steps)
-  for (int64_t t = 0; t < n_steps; ++t) {
+  // Step t's cells are updated in two parts: its decay in the pass that also tests the threshold of step t - 1,
+  // its jumps once its input is complete; so the loop runs one extra time for the last step's threshold test.
+  float* __restrict__ prev_inb = nullptr;   // the input of step t - 1 (its threshold test reads it: on_event)
+  for (int64_t t = 0; t <= n_steps; ++t) {
+    const bool this_step = t < n_steps, last_step = t > 0;
     const int32_t m = first_step + int32_t(t) + 1;
-    const float t_ms = float(m) * dt;
     // 2a. this step's slot of the ring
-    // (used in place as this step's input and cleared at the end of the step: nothing is delivered into it
+    // (used in place as this step's input and cleared after its threshold test: nothing is delivered into it
     // meanwhile, every delay being at least one step and shorter than the ring)
     const int64_t m_slot = int64_t(m) % n_slots;
     float* __restrict__ inb = ring + m_slot * width;
-    if (a.batched) {   // the next step's slot on its way into the cache while this step runs: in a batch, a
-                       // network's ring has left the cache since its last chunk (alone, it stays; prefetching it
-                       // there measured 3 % slower)
+    if (a.batched && this_step) {   // the next step's slot on its way into the cache while this step runs: in a
+                       // batch, a network's ring has left the cache since its last chunk (alone, it stays;
+                       // prefetching it there measured 3 % slower)
       const char* next = reinterpret_cast<const char*>(ring + (m_slot + 1 == n_slots ? 0 : m_slot + 1) * width);
       for (int64_t b = 0; b < int64_t(sizeof(float)) * width; b += 64) __builtin_prefetch(next + b, 1, 3);
     }
-    // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs
+    // 2c. the threshold test of step t - 1 and its spikes' effects on the cells; the decay and V of step t
+    cell_pass<PerEvent>(a.on_event != 0, last_step, this_step,
+                        CellArrays{ampa, nmda, gprox, gdist, ahp, excess, since, prev_inb, v_buf.data(),
+                                   block_buf.data(), sb, n},
+                        cc);
+    PROF_MARK(kCells)
+    if (last_step) {   // 2d-g. the spikes of step t - 1
+      const int64_t tp = t - 1;
+      const int32_t mp = m - 1;
+      const float t_ms = float(mp) * dt;
+      const int64_t mp_slot = int64_t(mp) % n_slots;
+      fired.clear();
+      for (int64_t i0 = 0; i0 < n; i0 += 8) {
+        uint64_t word;
+        std::memcpy(&word, sb + i0, 8);
+        if (word == 0) continue;
+        for (int64_t i = i0; i < std::min(i0 + 8, n); ++i)
+          if (sb[i]) fired.push_back(int32_t(i));
+      }
+      std::memset(prev_inb, 0, sizeof(float) * width);
+      // 2e. spike output, last / previous spike times and counts; P trains
+      bool* out_spk = spikes + tp * n_all;
+      std::memset(out_spk, 0, n_all);
+      for (int32_t i : fired) {
+        out_spk[i] = true;
+        prev[i] = last[i];
+        last[i] = t_ms;
+        count[i] += 1;
+      }
+      for (int64_t j0 = 0; j0 < n_p; j0 += simd::kLanes) {
+        if (j0 + simd::kLanes <= n_p && !simd::any(simd::load<simd::vi>(p_next + j0) == mp))
+          continue;   // no P spike now in these eight
+        for (int64_t j = j0; j < std::min(j0 + simd::kLanes, n_p); ++j) {
+          if (p_next[j] != mp) continue;
+          const int64_t id = p_start + j;
+          out_spk[id] = true;
+          prev[id] = last[id];
+          last[id] = t_ms;
+          count[id] += 1;
+          p_next[j] = p_interval[j] >= kNever ? kNever : p_next[j] + p_interval[j];
+        }
+      }
+      PROF_MARK(kSpikeBookkeeping)
+      PROF_COUNT(spikes, int64_t(fired.size()))
+      // 2f. delivery of the network spikes
+      for (int32_t i : fired) {
+        const Tables& tb = groups[cell_group[i]];
+        const bool exc = a.exc[cell_group[i]] != 0;
+        const float e_rev = exc ? e_ampa : -e_gaba;
+        const int64_t r = cell_row[i];
+        const int32_t* syn = tb.out_syn + r * tb.out_width;
+        const int32_t* packed = tb.out_packed + r * tb.out_width;
+        const float* wt = tb.out_weight + r * tb.out_width;
+        const float* wn = tb.out_nmda + r * tb.out_width;
+        PROF_COUNT(synapse_events, tb.out_width)
+        const int64_t wd = tb.out_width;
+        for (int64_t j = 0; j < wd; ++j) row_w[j] = syn[j] < n_syn ? wt[j] * wgain[syn[j]] : 0.0f;  // padding: 0
+        if (seq) {
+          int64_t j = 0;
+          for (; j + simd::kLanes <= wd; j += simd::kLanes)
+            simd::store(row_w + j, event_load(simd::load<simd::vf>(row_w + j), e_rev, jump_cap));
+          for (; j < wd; ++j) row_w[j] = event_load(row_w[j], e_rev, jump_cap);
+        }
+        for (int64_t j = 0; j < wd; ++j) {
+          if (syn[j] >= n_syn) continue;  // padding
+          // slot (mp + delay) % n_slots without a division per synapse: delay < n_slots (Network.n_slots)
+          const int64_t slot = mp_slot + (packed[j] & delay_mask);
+          const int64_t idx = (slot >= n_slots ? slot - n_slots : slot) * width + (packed[j] >> delay_bits);
+          ring[idx] += row_w[j];
+          if (exc) ring[idx + n] += wn[j];
+        }
+      }
+      PROF_MARK(kDelivery)
+      // 2g. tagging of the plastic inputs of every cell that fired (reads spike times, writes tags: independent of
+      // the ring, so its own loop gives the same results)
+      if (n_plastic > 0)
+        for (int32_t i : fired) {
+          const Tables& tb = groups[cell_group[i]];
+          const int64_t r = cell_row[i];
+          const int32_t* tag = tb.in_plastic + r * tb.in_width;
+          const int32_t* pre = tb.in_pre + r * tb.in_width;
+          PROF_COUNT(tag_checks, tb.in_width)
+          for (int64_t j = 0; j < tb.in_width; ++j) {
+            if (tag[j] >= n_plastic || pre[j] >= n_all) continue;
+            const float l = last[pre[j]] <= t_ms ? last[pre[j]] : prev[pre[j]];
+            if (l >= 0.0f && t_ms - l <= window_ms) pdope[tag[j]] = std::max(pdope[tag[j]], t_ms);
+          }
+        }
+      PROF_MARK(kTags)
+    }
+    if (!this_step) break;
+    // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs (after
+    // the last step's delivery, which may land in this step's slot: the same order of additions as the XLA path)
     add_noise(n, kmax, hash32(uint32_t(m) * kGolden + step_seed), lane_key, thr, noise_w, events_left, limited, inb,
               ub, noise_blocks.data());
     PROF_MARK(kNoise)
-    // 2c-e. every cell's decay, jumps and threshold test, then the spikes' own updates
-    cell_update<PerEvent>(seq, a.on_event != 0,
-                          CellArrays{ampa, nmda, gprox, gdist, ahp, excess, since, inb, v_buf.data(),
-                                     block_buf.data(), sb, n},
-                          cc);
+    // 2c. this step's jumps
+    const CellArrays cells{ampa, nmda, gprox, gdist, ahp, excess, since, inb, v_buf.data(), block_buf.data(), sb, n};
+    if (seq) jumps<true>(cells, cc);
+    else jumps<false>(cells, cc);
     PROF_MARK(kCells)
-    fired.clear();
-    for (int64_t i0 = 0; i0 < n; i0 += 8) {
-      uint64_t word;
-      std::memcpy(&word, sb + i0, 8);
-      if (word == 0) continue;
-      for (int64_t i = i0; i < std::min(i0 + 8, n); ++i) {
-        if (!sb[i]) continue;
-        ahp[i] -= ahpwt[i];
-        excess[i] = post_excess[i];
-        since[i] = 0;
-        fired.push_back(int32_t(i));
-      }
-    }
-    std::memset(inb, 0, sizeof(float) * width);
-    // 2f. spike output, last / previous spike times and counts; P trains
-    bool* out_spk = spikes + t * n_all;
-    std::memset(out_spk, 0, n_all);
-    for (int32_t i : fired) {
-      out_spk[i] = true;
-      prev[i] = last[i];
-      last[i] = t_ms;
-      count[i] += 1;
-    }
-    for (int64_t j0 = 0; j0 < n_p; j0 += simd::kLanes) {
-      if (j0 + simd::kLanes <= n_p && !simd::any(simd::load<simd::vi>(p_next + j0) == m))
-        continue;   // no P spike now in these eight
-      for (int64_t j = j0; j < std::min(j0 + simd::kLanes, n_p); ++j) {
-        if (p_next[j] != m) continue;
-        const int64_t id = p_start + j;
-        out_spk[id] = true;
-        prev[id] = last[id];
-        last[id] = t_ms;
-        count[id] += 1;
-        p_next[j] = p_interval[j] >= kNever ? kNever : p_next[j] + p_interval[j];
-      }
-    }
-    PROF_MARK(kSpikeBookkeeping)
-    PROF_COUNT(spikes, int64_t(fired.size()))
-    // 2g. delivery of this step's network spikes
-    for (int32_t i : fired) {
-      const Tables& tb = groups[cell_group[i]];
-      const bool exc = a.exc[cell_group[i]] != 0;
-      const float e_rev = exc ? e_ampa : -e_gaba;
-      const int64_t r = cell_row[i];
-      const int32_t* syn = tb.out_syn + r * tb.out_width;
-      const int32_t* packed = tb.out_packed + r * tb.out_width;
-      const float* wt = tb.out_weight + r * tb.out_width;
-      const float* wn = tb.out_nmda + r * tb.out_width;
-      PROF_COUNT(synapse_events, tb.out_width)
-      const int64_t wd = tb.out_width;
-      for (int64_t j = 0; j < wd; ++j) row_w[j] = syn[j] < n_syn ? wt[j] * wgain[syn[j]] : 0.0f;  // padding: 0
-      if (seq) {
-        int64_t j = 0;
-        for (; j + simd::kLanes <= wd; j += simd::kLanes)
-          simd::store(row_w + j, event_load(simd::load<simd::vf>(row_w + j), e_rev, jump_cap));
-        for (; j < wd; ++j) row_w[j] = event_load(row_w[j], e_rev, jump_cap);
-      }
-      for (int64_t j = 0; j < wd; ++j) {
-        if (syn[j] >= n_syn) continue;  // padding
-        // slot (m + delay) % n_slots without a division per synapse: delay < n_slots (Network.n_slots)
-        const int64_t slot = m_slot + (packed[j] & delay_mask);
-        const int64_t idx = (slot >= n_slots ? slot - n_slots : slot) * width + (packed[j] >> delay_bits);
-        ring[idx] += row_w[j];
-        if (exc) ring[idx + n] += wn[j];
-      }
-    }
-    PROF_MARK(kDelivery)
-    // 2h. tagging of the plastic inputs of every cell that fired (reads spike times, writes tags: independent of
-    // the ring, so its own loop gives the same results)
-    if (n_plastic > 0)
-      for (int32_t i : fired) {
-        const Tables& tb = groups[cell_group[i]];
-        const int64_t r = cell_row[i];
-        const int32_t* tag = tb.in_plastic + r * tb.in_width;
-        const int32_t* pre = tb.in_pre + r * tb.in_width;
-        PROF_COUNT(tag_checks, tb.in_width)
-        for (int64_t j = 0; j < tb.in_width; ++j) {
-          if (tag[j] >= n_plastic || pre[j] >= n_all) continue;
-          const float l = last[pre[j]] <= t_ms ? last[pre[j]] : prev[pre[j]];
-          if (l >= 0.0f && t_ms - l <= window_ms) pdope[tag[j]] = std::max(pdope[tag[j]], t_ms);
-        }
-      }
-    PROF_MARK(kTags)
+    prev_inb = inb;
   }
   *at<int32_t>(out[oStep], flat) = first_step + int32_t(n_steps);
 }
