@@ -19,6 +19,7 @@
 // shape (size 1 where not batched); the kernel broadcasts them, so shared wiring is read in place, never copied.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -48,6 +49,7 @@ int64_t ns[kNumPhases];
 int64_t spikes, synapse_events, tag_checks, steps;
 // cell blocks updated, and of them those with input at AMPA, NMDA, GABA-prox, GABA-dist (the jumps computed)
 int64_t cell_blocks, blocks_ampa, blocks_nmda, blocks_gaba_prox, blocks_gaba_dist;
+int64_t listed_blocks;   // scratch: blocks with input at the receptor being listed
 inline int64_t now() { return std::chrono::steady_clock::now().time_since_epoch().count(); }
 }  // namespace prof
 #define PROF_START int64_t prof_t = prof::now();
@@ -416,7 +418,7 @@ struct CellArrays {  // the cells' state (updated in place), this step's input, 
   int32_t* since;
   const float* in;   // [4 n]: AMPA, NMDA, GABA-prox, GABA-dist
   float* v;          // [n] scratch: V of this step
-  int32_t* blocks;   // [4 (n / kLanes)] scratch: per receptor, the first cell of every block with input
+  int32_t* listed;   // [n + kLanes] scratch: the cells with input at one receptor
   uint8_t* spiked;   // [n]
   int64_t n;
 };
@@ -471,27 +473,20 @@ ALWAYS_INLINE void cell_lanes(int64_t i, const CellArrays& s, const CellConstant
   simd::store(s.since + i, sn);
 }
 
-// receptor R's jumps in the lanes at i (an entry of R's list)
+// receptor R's component after this step's input x (loads with Seq, weights without) at V v; a lane without input
+// (x == 0) keeps it
 template <class T, bool Seq, Receptor R>
-ALWAYS_INLINE void jump_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
-  using simd::load;
-  using simd::splat;
-  const int64_t n = s.n;
-  const T v = load<T>(s.v + i), x = load<T>(s.in + R * n + i);
+ALWAYS_INLINE T jumped(T comp, T v, T x, T rmp, const CellConstantsView& c) {
   const auto has = x != 0.0f;
   if constexpr (R == kRecAmpa) {
-    const T a = load<T>(s.ampa + i);
     const T ja = Seq ? (c.e_ampa - v) * -fastmath::expm1(x * c.neg_inv_ampa) : x * (1.0f - v * c.inv_ampa);
-    simd::store(s.ampa + i, has ? simd::max(a + ja, splat<T>(0.0f)) : a);
+    return has ? simd::max(comp + ja, simd::splat<T>(0.0f)) : comp;
   } else if constexpr (R == kRecNmda) {
-    const T b = load<T>(s.nmda + i);
-    const T block = 1.0f / (1.0f + fastmath::exp(c.neg_mg_slope * (load<T>(c.rmp + i) + v)) * c.mg_ratio);
-    simd::store(s.nmda + i, (b < c.e_nmda) & has ? b + x * block * (1.0f - v * c.inv_nmda) : b);
+    const T block = 1.0f / (1.0f + fastmath::exp(c.neg_mg_slope * (rmp + v)) * c.mg_ratio);
+    return (comp < c.e_nmda) & has ? comp + x * block * (1.0f - v * c.inv_nmda) : comp;
   } else {
-    float* comp = R == kRecGabaProx ? s.gprox : s.gdist;
-    const T g = load<T>(comp + i);
     const T jg = Seq ? (v - c.e_gaba) * -fastmath::expm1(x * c.inv_gaba) : x * (1.0f - v * c.inv_gaba);
-    simd::store(comp + i, has & (g > c.e_gaba) ? simd::min(g - jg, splat<T>(0.0f)) : g);
+    return has & (comp > c.e_gaba) ? simd::min(comp - jg, simd::splat<T>(0.0f)) : comp;
   }
 }
 
@@ -520,40 +515,87 @@ void cell_pass(bool on_event, bool threshold, bool decay, const CellArrays& s, c
   }
 }
 
-// This step's jumps, once its input is complete: per receptor, the list of the blocks with input in some lane (no
-// branch: every block is written, the count advances where it has input), then the listed blocks' jumps
+// The cells among [0, full) with input in x (x != 0, NaN included), in order, into idx (room for full + 8): a mask
+// per block of eight and its set lanes' positions from a table, no branch
+const std::array<uint64_t, 256> kSetLanes = [] {
+  std::array<uint64_t, 256> t{};
+  for (int m = 0; m < 256; ++m)
+    for (int b = 0, k = 0; b < 8; ++b)
+      if (m >> b & 1) t[m] |= uint64_t(b) << (8 * k++);
+  return t;
+}();
+
+inline int32_t cells_with_input(const float* __restrict__ x, int64_t full, int32_t* __restrict__ idx) {
+  int32_t k = 0;
+#ifdef __AVX2__
+  for (int64_t i = 0; i < full; i += 8) {
+    const int mask = _mm256_movemask_ps(_mm256_cmp_ps(_mm256_loadu_ps(x + i), _mm256_setzero_ps(), _CMP_NEQ_UQ));
+    const __m256i lanes = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(int64_t(kSetLanes[mask])));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(idx + k), _mm256_add_epi32(lanes, _mm256_set1_epi32(int32_t(i))));
+    k += __builtin_popcount(mask);
+    PROF_COUNT(listed_blocks, mask != 0)
+  }
+#else
+  for (int64_t i = 0; i < full; ++i) {
+    idx[k] = int32_t(i);
+    k += x[i] != 0.0f;
+  }
+#endif
+  return k;
+}
+
+// receptor R's jumps of the k cells in idx, eight at a time: their values gathered into lanes, the lanes' results
+// stored back (the last lanes of the last eight repeat the last cell, computed and stored twice the same)
+template <bool Seq, Receptor R>
+ALWAYS_INLINE void jumps_of(const int32_t* __restrict__ idx, int32_t k, float* __restrict__ comp, const float* v,
+                            const float* x, const CellConstantsView& c) {
+  for (int32_t j = 0; j < k; j += simd::kLanes) {
+    int32_t id[simd::kLanes];
+    for (int l = 0; l < simd::kLanes; ++l) id[l] = idx[std::min(j + l, k - 1)];
+    simd::vf cv, vv, xv, rv = simd::vf{};
+    for (int l = 0; l < simd::kLanes; ++l) {
+      cv[l] = comp[id[l]];
+      vv[l] = v[id[l]];
+      xv[l] = x[id[l]];
+      if constexpr (R == kRecNmda) rv[l] = c.rmp[id[l]];
+    }
+    const simd::vf out = jumped<simd::vf, Seq, R>(cv, vv, xv, rv, c);
+    for (int l = 0; l < simd::kLanes; ++l) comp[id[l]] = out[l];
+  }
+}
+
+// This step's jumps, once its input is complete. In the paper's network 3-8 % of the cells have input at a
+// receptor in a step (half of the blocks of eight have AMPA input, a quarter NMDA, a fifth to a quarter each GABA:
+// block_input_share in docs/results/profile.json), so the cells with input are listed per receptor and their
+// jumps, whose transcendental functions are most of the cost, computed eight listed cells at a time. Every cell
+// takes exactly the operations of the one-cell form, so the bits are those of computing every jump densely. The
+// last n % kLanes cells take them one cell at a time.
 template <bool Seq>
 void jumps(const CellArrays& arrays, const CellConstantsView& consts) {
   const CellArrays s = arrays;
   const CellConstantsView c = consts;
   const int64_t n = s.n;
   const int64_t full = n - n % simd::kLanes;
-  const int64_t per_list = n / simd::kLanes;
-  int32_t n_listed[4] = {0, 0, 0, 0};
-  for (int64_t i = 0; i < full; i += simd::kLanes)
-    for (int r = 0; r < 4; ++r) {
-      const bool has = simd::any(simd::load<simd::vf>(s.in + r * n + i) != 0.0f);
-      s.blocks[r * per_list + n_listed[r]] = int32_t(i);
-      n_listed[r] += has;
-    }
   PROF_COUNT(cell_blocks, full / simd::kLanes)
-  PROF_COUNT(blocks_ampa, n_listed[kRecAmpa])
-  PROF_COUNT(blocks_nmda, n_listed[kRecNmda])
-  PROF_COUNT(blocks_gaba_prox, n_listed[kRecGabaProx])
-  PROF_COUNT(blocks_gaba_dist, n_listed[kRecGabaDist])
-  const int32_t* list = s.blocks;
-  for (int32_t k = 0; k < n_listed[kRecAmpa]; ++k) jump_lanes<simd::vf, Seq, kRecAmpa>(list[k], s, c);
-  list += per_list;
-  for (int32_t k = 0; k < n_listed[kRecNmda]; ++k) jump_lanes<simd::vf, Seq, kRecNmda>(list[k], s, c);
-  list += per_list;
-  for (int32_t k = 0; k < n_listed[kRecGabaProx]; ++k) jump_lanes<simd::vf, Seq, kRecGabaProx>(list[k], s, c);
-  list += per_list;
-  for (int32_t k = 0; k < n_listed[kRecGabaDist]; ++k) jump_lanes<simd::vf, Seq, kRecGabaDist>(list[k], s, c);
+  int32_t* idx = s.listed;
+  const int32_t ka = cells_with_input(s.in, full, idx);
+  PROF_COUNT(blocks_ampa, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
+  jumps_of<Seq, kRecAmpa>(idx, ka, s.ampa, s.v, s.in, c);
+  const int32_t kn = cells_with_input(s.in + n, full, idx);
+  PROF_COUNT(blocks_nmda, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
+  jumps_of<Seq, kRecNmda>(idx, kn, s.nmda, s.v, s.in + n, c);
+  const int32_t kp = cells_with_input(s.in + 2 * n, full, idx);
+  PROF_COUNT(blocks_gaba_prox, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
+  jumps_of<Seq, kRecGabaProx>(idx, kp, s.gprox, s.v, s.in + 2 * n, c);
+  const int32_t kd = cells_with_input(s.in + 3 * n, full, idx);
+  PROF_COUNT(blocks_gaba_dist, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
+  jumps_of<Seq, kRecGabaDist>(idx, kd, s.gdist, s.v, s.in + 3 * n, c);
   for (int64_t i = full; i < n; ++i) {   // the tail, one cell at a time
-    if (s.in[i] != 0.0f) jump_lanes<float, Seq, kRecAmpa>(i, s, c);
-    if (s.in[n + i] != 0.0f) jump_lanes<float, Seq, kRecNmda>(i, s, c);
-    if (s.in[2 * n + i] != 0.0f) jump_lanes<float, Seq, kRecGabaProx>(i, s, c);
-    if (s.in[3 * n + i] != 0.0f) jump_lanes<float, Seq, kRecGabaDist>(i, s, c);
+    const float v = s.v[i], rmp = c.rmp[i];
+    if (s.in[i] != 0.0f) s.ampa[i] = jumped<float, Seq, kRecAmpa>(s.ampa[i], v, s.in[i], rmp, c);
+    if (s.in[n + i] != 0.0f) s.nmda[i] = jumped<float, Seq, kRecNmda>(s.nmda[i], v, s.in[n + i], rmp, c);
+    if (s.in[2 * n + i] != 0.0f) s.gprox[i] = jumped<float, Seq, kRecGabaProx>(s.gprox[i], v, s.in[2 * n + i], rmp, c);
+    if (s.in[3 * n + i] != 0.0f) s.gdist[i] = jumped<float, Seq, kRecGabaDist>(s.gdist[i], v, s.in[3 * n + i], rmp, c);
   }
 }
 
@@ -686,7 +728,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   // byte flags, padded to whole 8-byte words (zero) so they can be scanned a word at a time
   std::vector<uint8_t> spk_buf(n + 8, 0);
   std::vector<float> v_buf(n);
-  std::vector<int32_t> block_buf(4 * (n / simd::kLanes) + 1);
+  std::vector<int32_t> listed_buf(n + simd::kLanes);
   std::vector<int32_t> fired;
   fired.reserve(n);
   const CellConstantsView cc{rmp,      vth,      vblock,       ahpwt,    post_excess, d_ampa,  d_nmda,
@@ -724,7 +766,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     // 2c. the threshold test of step t - 1 and its spikes' effects on the cells; the decay and V of step t
     cell_pass<PerEvent>(a.on_event != 0, last_step, this_step,
                         CellArrays{ampa, nmda, gprox, gdist, ahp, excess, since, prev_inb, v_buf.data(),
-                                   block_buf.data(), sb, n},
+                                   listed_buf.data(), sb, n},
                         cc);
     PROF_MARK(kCells)
     if (last_step) {   // 2d-g. the spikes of step t - 1
@@ -818,7 +860,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
               ub, noise_blocks.data());
     PROF_MARK(kNoise)
     // 2c. this step's jumps
-    const CellArrays cells{ampa, nmda, gprox, gdist, ahp, excess, since, inb, v_buf.data(), block_buf.data(), sb, n};
+    const CellArrays cells{ampa, nmda, gprox, gdist, ahp, excess, since, inb, v_buf.data(), listed_buf.data(), sb, n};
     if (seq) jumps<true>(cells, cc);
     else jumps<false>(cells, cc);
     PROF_MARK(kCells)
