@@ -398,20 +398,14 @@ struct CellConstantsView {   // per-cell constants (native_cell_floats) and the 
 // V (the deviation every driving force of this step uses), the jumps of this step's input in[4 n] (AMPA, NMDA,
 // GABA-prox, GABA-dist: loads with Seq, weights without), the threshold test into spiked[n] and a spike's own
 // effects (AHP jump, threshold excess, refractory count).
-// The cells' data (7 state arrays, 13 constant arrays, V and the input) is larger than the L1 cache, so every pass
-// over the cells streams it from L2: the threshold test of step t and the decay of step t + 1 go in one pass (the
-// spike's effects between them, as selects), which reads the state and the constants once for both. Nothing in
-// between reads or writes the cells (delivery, tags and the next step's noise touch the ring and the spike times
-// only), so the arithmetic, and the bits, are those of the one-cell form in its order.
-// A receptor's jump needs transcendental functions, but only where that receptor has input this step: in the
-// paper's network about half of the blocks of eight cells have AMPA input in a step, a quarter NMDA and a fifth to
-// a quarter each GABA (block_input_share in docs/results/profile.json, from the profiling build's block counters).
-// So after the input of step t is complete, a light pass over it lists, per receptor, the blocks with input, and the
-// jumps are computed for the listed blocks only (with selects for the cells of a block without input, which keep
-// their component). Lists instead of a branch per block: the branches, taken 20-50 % of the time at random, cost
-// more in mispredictions than the skipped work saved (measured). Every lane takes exactly the operations of the
-// one-cell form, so the bits are those of computing every jump densely. The last n % kLanes cells take the same
-// stages one cell at a time.
+// The threshold test of step t and the decay of step t + 1 go in one pass over the cells (the spike's effects
+// between them, as selects), which loads and stores the state and the constants once for both. Nothing in between
+// reads or writes the cells (delivery, tags and the next step's noise touch the ring and the spike times only), so
+// the arithmetic, and the bits, are those of the one-cell form in its order.
+// A receptor's jump needs transcendental functions, but only where that receptor has input this step, and 3-8 % of
+// the cells do (in the paper's network): once the input of step t is complete, the cells with input are listed per
+// receptor and their jumps computed eight listed cells at a time (jumps, below). The last n % kLanes cells take the
+// same stages one cell at a time.
 // PerEvent: NetworkConfig.crossing = "per_event"; OnEvent: threshold_test = "on_event".
 struct CellArrays {  // the cells' state (updated in place), this step's input, and the per-step scratch
   float *ampa, *nmda, *gprox, *gdist, *ahp, *excess;
