@@ -77,7 +77,7 @@ class MusculoskeletalArmConfig(_JointRanges):
 
     Attributes:
         dt_s: arm step, s. The original integrated at 0.1 ms inside 10 ms updates; 1 ms is the paper's figure and
-            is what our linearly-implicit muscle step is tested stable at.
+            what both muscle integrators are tested at (``tests/test_muscle_integrator.py``).
         substeps: integration substeps per step (dt_s / substeps each), of skeleton and muscles alike.
         muscle_substeps: with ``muscle_integrator="linearly_implicit"`` only: steps of the muscles' fibre-length
             ODE per (sub)step of the skeleton, along the path lengths extrapolated linearly over the step (10: 0.1
