@@ -48,8 +48,7 @@ enum Phase { kCopyIn, kPWindow, kNoise, kCells, kSpikeBookkeeping, kDelivery, kT
 int64_t ns[kNumPhases];
 int64_t spikes, synapse_events, tag_checks, steps;
 // cell blocks updated, and of them those with input at AMPA, NMDA, GABA-prox, GABA-dist (the jumps computed)
-int64_t cell_blocks, blocks_ampa, blocks_nmda, blocks_gaba_prox, blocks_gaba_dist;
-int64_t listed_blocks;   // scratch: blocks with input at the receptor being listed
+int64_t cell_blocks, blocks_with_input[4];
 inline int64_t now() { return std::chrono::steady_clock::now().time_since_epoch().count(); }
 }  // namespace prof
 #define PROF_START int64_t prof_t = prof::now();
@@ -67,15 +66,13 @@ extern "C" void JaxarmProfileRead(int64_t* out) {   // ns per phase, then the ni
   out[prof::kNumPhases + 2] = prof::tag_checks;
   out[prof::kNumPhases + 3] = prof::steps;
   out[prof::kNumPhases + 4] = prof::cell_blocks;
-  out[prof::kNumPhases + 5] = prof::blocks_ampa;
-  out[prof::kNumPhases + 6] = prof::blocks_nmda;
-  out[prof::kNumPhases + 7] = prof::blocks_gaba_prox;
-  out[prof::kNumPhases + 8] = prof::blocks_gaba_dist;
+  for (int r = 0; r < 4; ++r) out[prof::kNumPhases + 5 + r] = prof::blocks_with_input[r];
 }
 extern "C" void JaxarmProfileReset() {
   for (int k = 0; k < prof::kNumPhases; ++k) prof::ns[k] = 0;
   prof::spikes = prof::synapse_events = prof::tag_checks = prof::steps = 0;
-  prof::cell_blocks = prof::blocks_ampa = prof::blocks_nmda = prof::blocks_gaba_prox = prof::blocks_gaba_dist = 0;
+  prof::cell_blocks = 0;
+  for (int64_t& b : prof::blocks_with_input) b = 0;
 }
 #else
 #define PROF_START
@@ -417,7 +414,12 @@ struct CellArrays {  // the cells' state (updated in place), this step's input, 
   int64_t n;
 };
 
-enum Receptor { kRecAmpa, kRecNmda, kRecGabaProx, kRecGabaDist };
+enum Receptor { kRecAmpa, kRecNmda, kRecGabaProx, kRecGabaDist };   // their rows of CellArrays::in, in order
+
+template <Receptor R>
+inline float* component(const CellArrays& s) {   // receptor R's component of every cell
+  return R == kRecAmpa ? s.ampa : R == kRecNmda ? s.nmda : R == kRecGabaProx ? s.gprox : s.gdist;
+}
 
 // The lanes at i: with Threshold, the threshold test of the last step (its input in s.in, its V in s.v) and the
 // spikes' effects; with Decay, this step's decay, refractory bookkeeping and V.
@@ -510,7 +512,8 @@ void cell_pass(bool on_event, bool threshold, bool decay, const CellArrays& s, c
 }
 
 // The cells among [0, full) with input in x (x != 0, NaN included), in order, into idx (room for full + 8): a mask
-// per block of eight and its set lanes' positions from a table, no branch
+// per block of eight and its set lanes' positions from a table, no branch. The profiling build counts the blocks
+// with input at receptor R.
 const std::array<uint64_t, 256> kSetLanes = [] {
   std::array<uint64_t, 256> t{};
   for (int m = 0; m < 256; ++m)
@@ -519,6 +522,7 @@ const std::array<uint64_t, 256> kSetLanes = [] {
   return t;
 }();
 
+template <Receptor R>
 inline int32_t cells_with_input(const float* __restrict__ x, int64_t full, int32_t* __restrict__ idx) {
   int32_t k = 0;
 #ifdef __AVX2__
@@ -527,12 +531,16 @@ inline int32_t cells_with_input(const float* __restrict__ x, int64_t full, int32
     const __m256i lanes = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(int64_t(kSetLanes[mask])));
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(idx + k), _mm256_add_epi32(lanes, _mm256_set1_epi32(int32_t(i))));
     k += __builtin_popcount(mask);
-    PROF_COUNT(listed_blocks, mask != 0)
+    PROF_COUNT(blocks_with_input[R], mask != 0)
   }
 #else
-  for (int64_t i = 0; i < full; ++i) {
-    idx[k] = int32_t(i);
-    k += x[i] != 0.0f;
+  for (int64_t i = 0; i < full; i += simd::kLanes) {
+    const int32_t k0 = k;
+    for (int64_t l = i; l < i + simd::kLanes; ++l) {
+      idx[k] = int32_t(l);
+      k += x[l] != 0.0f;
+    }
+    PROF_COUNT(blocks_with_input[R], k != k0)
   }
 #endif
   return k;
@@ -558,39 +566,34 @@ ALWAYS_INLINE void jumps_of(const int32_t* __restrict__ idx, int32_t k, float* _
   }
 }
 
+// Receptor R's jumps in this step: its cells with input listed, their jumps computed eight at a time, then the last
+// n % kLanes cells one at a time
+template <bool Seq, Receptor R>
+ALWAYS_INLINE void receptor_jumps(const CellArrays& s, const CellConstantsView& c) {
+  const int64_t n = s.n;
+  const int64_t full = n - n % simd::kLanes;
+  const float* x = s.in + int64_t(R) * n;
+  float* comp = component<R>(s);
+  jumps_of<Seq, R>(s.listed, cells_with_input<R>(x, full, s.listed), comp, s.v, x, c);
+  for (int64_t i = full; i < n; ++i)
+    if (x[i] != 0.0f) comp[i] = jumped<float, Seq, R>(comp[i], s.v[i], x[i], c.rmp[i], c);
+}
+
 // This step's jumps, once its input is complete. In the paper's network 3-8 % of the cells have input at a
 // receptor in a step (half of the blocks of eight have AMPA input, a quarter NMDA, a fifth to a quarter each GABA:
 // block_input_share in docs/results/profile.json), so the cells with input are listed per receptor and their
 // jumps, whose transcendental functions are most of the cost, computed eight listed cells at a time. Every cell
-// takes exactly the operations of the one-cell form, so the bits are those of computing every jump densely. The
-// last n % kLanes cells take them one cell at a time.
+// takes exactly the operations of the one-cell form, so the bits are those of computing every jump densely (the
+// receptors' components are independent: their order does not matter).
 template <bool Seq>
 void jumps(const CellArrays& arrays, const CellConstantsView& consts) {
   const CellArrays s = arrays;
   const CellConstantsView c = consts;
-  const int64_t n = s.n;
-  const int64_t full = n - n % simd::kLanes;
-  PROF_COUNT(cell_blocks, full / simd::kLanes)
-  int32_t* idx = s.listed;
-  const int32_t ka = cells_with_input(s.in, full, idx);
-  PROF_COUNT(blocks_ampa, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
-  jumps_of<Seq, kRecAmpa>(idx, ka, s.ampa, s.v, s.in, c);
-  const int32_t kn = cells_with_input(s.in + n, full, idx);
-  PROF_COUNT(blocks_nmda, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
-  jumps_of<Seq, kRecNmda>(idx, kn, s.nmda, s.v, s.in + n, c);
-  const int32_t kp = cells_with_input(s.in + 2 * n, full, idx);
-  PROF_COUNT(blocks_gaba_prox, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
-  jumps_of<Seq, kRecGabaProx>(idx, kp, s.gprox, s.v, s.in + 2 * n, c);
-  const int32_t kd = cells_with_input(s.in + 3 * n, full, idx);
-  PROF_COUNT(blocks_gaba_dist, prof::listed_blocks) PROF_COUNT(listed_blocks, -prof::listed_blocks)
-  jumps_of<Seq, kRecGabaDist>(idx, kd, s.gdist, s.v, s.in + 3 * n, c);
-  for (int64_t i = full; i < n; ++i) {   // the tail, one cell at a time
-    const float v = s.v[i], rmp = c.rmp[i];
-    if (s.in[i] != 0.0f) s.ampa[i] = jumped<float, Seq, kRecAmpa>(s.ampa[i], v, s.in[i], rmp, c);
-    if (s.in[n + i] != 0.0f) s.nmda[i] = jumped<float, Seq, kRecNmda>(s.nmda[i], v, s.in[n + i], rmp, c);
-    if (s.in[2 * n + i] != 0.0f) s.gprox[i] = jumped<float, Seq, kRecGabaProx>(s.gprox[i], v, s.in[2 * n + i], rmp, c);
-    if (s.in[3 * n + i] != 0.0f) s.gdist[i] = jumped<float, Seq, kRecGabaDist>(s.gdist[i], v, s.in[3 * n + i], rmp, c);
-  }
+  PROF_COUNT(cell_blocks, s.n / simd::kLanes)
+  receptor_jumps<Seq, kRecAmpa>(s, c);
+  receptor_jumps<Seq, kRecNmda>(s, c);
+  receptor_jumps<Seq, kRecGabaProx>(s, c);
+  receptor_jumps<Seq, kRecGabaDist>(s, c);
 }
 
 template <bool PerEvent>
