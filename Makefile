@@ -18,11 +18,16 @@ demo: $(BIN)/jaxarm
 	$(BIN)/jaxarm reproduce --arm musculoskeletal --preset msarm-cmaes-2cm-rerank --networks 4 --top 4 --epochs 4 \
 	    --out runs/demo/reach
 
+# Both suites spread their test files over one worker process per CPU, at most four (pytest-xdist; each worker is
+# a JAX process with its own two CPU devices, so more would only crowd the cores and the memory):
+# `make test PYTEST_WORKERS="-n 0"` runs every test in one process.
+PYTEST_WORKERS ?= -n auto --maxprocesses 4 --dist loadfile
+
 test: $(BIN)/jaxarm
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(PYTEST_WORKERS)
 
 test-slow: $(BIN)/jaxarm
-	$(BIN)/python -m pytest -q -m slow
+	$(BIN)/python -m pytest -q -m slow $(PYTEST_WORKERS)
 
 bench: $(BIN)/jaxarm
 	$(BIN)/python benchmarks/arm.py --json
