@@ -28,6 +28,7 @@ def hand_at_horizons(arm, us):
     return jax.lax.scan(body, arm.init(), us)[1][np.asarray(HORIZONS_MS) - 1]
 
 
+@pytest.mark.slow  # three float64 programs of the 1 s arm to compile: 70-100 s from a fresh clone
 def test_smooth_arm_jvp_and_grad_match_richardson_finite_differences():
     arm = make_arm("musculoskeletal", smooth=True)
     seed = 7
