@@ -137,12 +137,12 @@ def main(argv=None) -> int:
         ap.error(f"--epoch-s = {args.epoch_s}: must be in [0.01, 600] s")
     from jaxarm.config.validate import ConfigError
     from jaxarm.paper import presets
-    from jaxarm.experiment import _parse_overrides
+    from jaxarm.experiment import parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.task.config import TARGET_ANGLES_RAD
 
     try:
-        overrides = _parse_overrides(args.set)
+        overrides = parse_overrides(args.set)
     except ConfigError as e:
         ap.error(str(e))
 

@@ -67,11 +67,11 @@ def main(argv=None) -> int:
         ap.error(f"--networks = {args.networks}: must be in [1, 4096]")
     # Run's checkpoint identity does not hold the LoopConfig: keep one folder to one change, so a rerun resumes it
     from jaxarm.config.validate import ConfigError
-    from jaxarm.experiment import _parse_overrides
+    from jaxarm.experiment import parse_overrides
     from jaxarm.learning.metaparams import MetaParams
 
     try:
-        overrides = _parse_overrides(args.set)
+        overrides = parse_overrides(args.set)
     except ConfigError as e:
         ap.error(str(e))
     marker = args.out / "protocol_check.json"

@@ -55,7 +55,7 @@ def main(argv=None) -> int:
     from jaxarm.analysis.reach import reach_metrics
     from jaxarm.analysis.stats import intraclass_correlation, set_mean_reliability
     from jaxarm.config.validate import ConfigError
-    from jaxarm.experiment import _parse_overrides
+    from jaxarm.experiment import parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.paper import presets
@@ -64,7 +64,7 @@ def main(argv=None) -> int:
 
     preset = presets.load(args.preset)
     try:
-        overrides = _parse_overrides(args.set)   # jaxarm train's --set: known names, within their bounds
+        overrides = parse_overrides(args.set)   # jaxarm train's --set: known names, within their bounds
     except ConfigError as e:
         raise SystemExit(f"stay_tradeoff: {e}") from None
     sets = [MetaParams.from_dict({**row["metaparams"], **overrides}) for row in preset.top[: args.sets]]

@@ -304,7 +304,7 @@ def train_main(argv: list[str] | None = None) -> int:
     try:
         parallel_cli.start_from_arguments(args)
         configs = _configs(args)
-        overrides = _parse_overrides(args.overrides)
+        overrides = parse_overrides(args.overrides)
         record = record_config(args)
     except ConfigError as e:
         ap.error(str(e))
@@ -398,7 +398,7 @@ def preset_metaparams(args) -> dict[str, float]:
     return dict(values)
 
 
-def _parse_overrides(items: list[str]) -> dict[str, float]:
+def parse_overrides(items: list[str]) -> dict[str, float]:
     """``["name=value", ...]`` -> ``{name: value}``, each a known metaparameter within its bounds."""
     from jaxarm.learning.metaparams import BOUNDS
 
@@ -445,7 +445,7 @@ def test_main(argv: list[str] | None = None) -> int:
         ap.error(f"--fresh-noise = {args.fresh_noise}: must be >= 0")
     try:
         parallel_cli.start_from_arguments(args)
-        overrides = _parse_overrides(args.overrides)
+        overrides = parse_overrides(args.overrides)
         record = record_config(args)
     except ConfigError as e:
         ap.error(str(e))

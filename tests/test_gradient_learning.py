@@ -260,7 +260,7 @@ def test_the_comparison_trains_each_headline_preset_as_reproduce_does(tmp_path):
     import types
     from pathlib import Path
 
-    from jaxarm.experiment import _parse_overrides
+    from jaxarm.experiment import parse_overrides
     from jaxarm.paper import presets
     from jaxarm.paper.reproduce import DEFAULT_PROTOCOL
 
@@ -274,7 +274,7 @@ def test_the_comparison_trains_each_headline_preset_as_reproduce_does(tmp_path):
             name, _, extra = DEFAULT_PROTOCOL[arm][target]["seeds"]
             want = presets.load(name).best_metaparams().replace(**extra) if extra else \
                 presets.load(name).best_metaparams()
-            got = MetaParams.from_dict(_parse_overrides([c.split("=", 1)[1] for c in cmd if c.startswith("--set=")]))
+            got = MetaParams.from_dict(parse_overrides([c.split("=", 1)[1] for c in cmd if c.startswith("--set=")]))
             for k, v in want.to_dict().items():
                 if k != "epochs":
                     assert np.float32(getattr(got, k)) == np.float32(v), (arm, target, k)

@@ -12,6 +12,8 @@ from jaxarm.arm.musculoskeletal import MusculoskeletalArm
 from jaxarm.config.arm import SMOOTH_KINKS, MusculoskeletalArmConfig
 from jaxarm.config.validate import ConfigError
 
+NEWTON_ITERATIONS = MusculoskeletalArmConfig().muscle_newton_iterations   # the arm's default
+
 #: Largest joint-angle error (deg) over 1 s allowed against the reference. Measured 0.18 (step) and 0.10 (ramp) with
 #: 2 iterations; ten 0.1 ms linearly-implicit sub-steps (the default before) are off by 1.66 and 0.37, one 1 ms step
 #: by 61 and 57.
@@ -104,7 +106,7 @@ def test_isometric_full_excitation_at_1ms_matches_small_steps(params):
     s0 = mus.MuscleState(jnp.zeros_like(lmt), mus.equilibrium_fiber_length(p, jnp.zeros_like(lmt), lmt))
 
     def be(s, _):
-        s = mus.step_backward_euler(p, s, u, lmt, lmt, 1e-3)
+        s = mus.step_backward_euler(p, s, u, lmt, lmt, 1e-3, NEWTON_ITERATIONS)
         return s, mus.tendon_force(p, s.fiber_length_m, lmt)
 
     def fine(s, _):
@@ -162,7 +164,7 @@ def test_smooth_backward_euler_has_finite_gradients(params):
         def body(s, t):
             l0 = rest * (1.0 + 0.02 * jnp.sin(20.0 * t))
             l1 = rest * (1.0 + 0.02 * jnp.sin(20.0 * (t + 1e-3)))
-            s = mus.step_backward_euler(p, s, u, l0, l1, 1e-3, smooth=SMOOTH_KINKS)
+            s = mus.step_backward_euler(p, s, u, l0, l1, 1e-3, NEWTON_ITERATIONS, smooth=SMOOTH_KINKS)
             return s, mus.tendon_force(p, s.fiber_length_m, l1, smooth=SMOOTH_KINKS)
 
         _, f = jax.lax.scan(body, s, jnp.arange(200) * 1e-3)

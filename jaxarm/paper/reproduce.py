@@ -546,10 +546,10 @@ def reproduce_main(argv: list[str] | None = None) -> int:
         if args.task == "centre-out-8":
             return _reproduce_centre_out(args, preset, argv)
         targets = None if args.targets is None else [t.strip() for t in args.targets.split(",") if t.strip()]
-        from jaxarm.experiment import _parse_overrides
+        from jaxarm.experiment import parse_overrides
         from jaxarm.run import network_config as network_config_of
 
-        overrides = _parse_overrides(args.overrides)
+        overrides = parse_overrides(args.overrides)
         network = network_config_of(args, None if preset is None else preset.network_config())
         with runfolder.claim(args.out, "jaxarm reproduce"):
             table = reproduce(preset, args.arm, targets, args.out, networks=args.networks, seed=args.seed,
@@ -569,7 +569,7 @@ def _reproduce_centre_out(args, preset, argv) -> int:
     best set (default: the authors' metaparameters), ``--networks`` seeds, ``--epochs`` per target; every device
     of every process (``--coordinator``), through the runner; a rerun skips the finished condition and resumes a
     killed one."""
-    from jaxarm.experiment import _parse_overrides
+    from jaxarm.experiment import parse_overrides
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.run import network_config as network_config_of
@@ -584,7 +584,7 @@ def _reproduce_centre_out(args, preset, argv) -> int:
     net = network_config_of(args, None if preset is None else preset.network_config())
     if args.dt_ms is not None:
         net = dataclasses.replace(net, dt_ms=args.dt_ms)
-    mp = MetaParams.from_dict({**(preset.best if preset is not None else {}), **_parse_overrides(args.overrides)})
+    mp = MetaParams.from_dict({**(preset.best if preset is not None else {}), **parse_overrides(args.overrides)})
     say = print if parallel.is_main_process() else (lambda *a, **k: None)
     say(f"{args.arm} arm, eight centre-out targets: {args.networks} networks per condition (target code, "
           f"control), {task.epochs_per_target} x {task.epoch_duration_s:g} s per target, cycled "
