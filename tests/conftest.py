@@ -3,10 +3,14 @@
 The whole suite runs on two CPU devices (as `jaxarm` commands do on a 2-core machine): every batch command splits
 its networks over both, and tests can compare a one-device mesh with the two-device one in one process.
 
-Every test, and every process a test starts, shares one persistent XLA compilation cache (``.pytest_cache/jax-xla``
-in the checkout, git-ignored; ``pytest --cache-clear`` empties it): about half of the suite's time is compiling, and
-the slow suite, the CLI processes and the notebooks compile many of the programs the default suite already did. A
-cached program is the same executable, so no result changes. Set ``JAX_COMPILATION_CACHE_DIR`` to use another folder.
+`make test` and `make test-slow` spread the test files over worker processes (pytest-xdist, one per CPU, at most four;
+a file's tests stay in one worker, so a module's fixtures are built once); each worker is such a process.
+
+Every test, and every process a test or a worker starts, shares one persistent XLA compilation cache
+(``.pytest_cache/jax-xla`` in the checkout, git-ignored; ``pytest --cache-clear`` empties it): about half of the
+suite's time is compiling, and the slow suite, the CLI processes and the notebooks compile many of the programs the
+default suite already did. A cached program is the same executable, so no result changes. Set
+``JAX_COMPILATION_CACHE_DIR`` to use another folder.
 """
 from __future__ import annotations
 
