@@ -376,8 +376,8 @@ def step_backward_euler(p: MuscleParams, state: MuscleState, u, lmt_start, lmt, 
     A fixed iteration count and selects instead of branches: the same vectorised code for every muscle. Two
     iterations are not always enough in the fastest transients: PECM1 taking up slack while its path lengthens at
     0.36 m/s (a 4 Hz, +-10 % l_opt sweep at excitation 0.5) had a one-step tendon-force error of 0.24 F_max (3
-    iterations, the arm's default ``MusculoskeletalArmConfig.muscle_newton_iterations``: 0.071; 8: 0.072; ten 0.1 ms linearly-implicit steps: 0.13), gone
-    within a few steps.
+    iterations, the arm's default ``MusculoskeletalArmConfig.muscle_newton_iterations``: 0.071; 8: 0.072; ten
+    0.1 ms linearly-implicit steps: 0.13), gone within a few steps.
     ``smooth``: as :func:`step` (``implicit_step`` softens the ``min(df, 0)``).
     """
     a = state.activation
