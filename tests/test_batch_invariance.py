@@ -5,7 +5,8 @@ polynomial's scale into each power's constant: the musculoskeletal arm's joint a
 a network alone, in a batch of 4 and in one of 64, and its training parted with the batch's size. The arm now sums
 its small products in a fixed order and keeps the scaled angle whole. Checked here on the arm alone (batches of 1,
 3, 5, 8 and 64 against each other) and in closed-loop training (slow: alone, a group of 7, groups of 2), with the
-arm's old products (XLA's ``dot``) as the positive control.
+arm's old products (XLA's ``dot``) as the positive control; the MJX backend's arm too (slow: batches of 1 and 3
+against 8).
 
 The closed loop runs through ``lax.map`` here, as a CPU device runs its share. A bare top-level ``vmap`` (``jaxarm
 --networks-at-once 0``) gives the same network state, but its epoch summary's hand distances differ from the mapped
@@ -47,9 +48,9 @@ def inputs():
     return u, q0
 
 
-def arm_paths(u, q0):
-    """Joint angles (batch, T, 2) rad of the fast musculoskeletal arm from q0 under excitations u, one vmap."""
-    arm = make_arm("musculoskeletal")
+def arm_paths(u, q0, backend="fast"):
+    """Joint angles (batch, T, 2) rad of the musculoskeletal arm from q0 under excitations u, one vmap."""
+    arm = make_arm("musculoskeletal", backend=backend)
 
     def one(u, q0):
         def body(s, ut):
@@ -67,6 +68,17 @@ def test_the_musculoskeletal_arm_gives_the_same_bits_in_every_batch_size(inputs)
     for b in BATCHES:
         np.testing.assert_array_equal(arm_paths(u[:b], q0[:b]), everyone[:b], err_msg=f"batch of {b} vs {N}")
     np.testing.assert_array_equal(arm_paths(u[N - 5:], q0[N - 5:]), everyone[N - 5:], err_msg="the last 5 alone")
+
+
+@pytest.mark.slow   # three MJX compilations, ~20 s each
+def test_the_mjx_arm_gives_the_same_bits_in_every_batch_size(inputs):
+    """The reference backend too: its own sums (MuJoCo's kinematics and mass matrix) are shape-independent here."""
+    u, q0 = inputs
+    u = u[:8, :40]
+    everyone = arm_paths(u, q0[:8], "mjx")
+    assert np.degrees(np.ptp(everyone, axis=1)).max() > 10.0
+    for b in (1, 3):
+        np.testing.assert_array_equal(arm_paths(u[:b], q0[:b], "mjx"), everyone[:b], err_msg=f"batch of {b} vs 8")
 
 
 def test_positive_control_xla_dot_of_the_muscle_paths_depends_on_the_batch(inputs):
