@@ -12,8 +12,8 @@ from the training state of networks 0..N-1 (the authors' metaparameters, babblin
 * ``train``: the closed loop as training runs it (network, readout, arm, critic, R-STDP, babbling, scaling);
 * ``test``: the same loop without learning; ``learning`` = train - test;
 * ``arm``: the arm alone for the same intervals (its excitations fixed); for the musculoskeletal arm also with one
-  muscle step per skeleton step instead of ten, which splits it into ``arm skeleton`` and ``arm muscles``
-  (muscles = (T10 - T1) x 10 / 9);
+  and with two linearly-implicit muscle steps per skeleton step (times T1, T2), which splits it into
+  ``arm skeleton`` (2 T1 - T2: the second muscle step costs what the first does) and ``arm muscles`` (the rest);
 * ``readout``: the EM window and excitations alone;
 * the native kernel's phases inside ``test``, from its profiling build (``jaxarm.network.native.enable_profiling``:
   the same kernel with phase timers; its overhead is printed): copy-in and set-up, the generators' (P) input,

@@ -48,7 +48,8 @@ enum Phase { kCopyIn, kPWindow, kNoise, kCells, kSpikeBookkeeping, kDelivery, kT
 int64_t ns[kNumPhases];
 int64_t spikes, synapse_events, tag_checks, steps;
 // cell blocks updated, and of them those with input at AMPA, NMDA, GABA-prox, GABA-dist (the jumps computed)
-int64_t cell_blocks, blocks_with_input[4];
+constexpr int kReceptors = 4;   // the rows of the kernel's input (enum Receptor)
+int64_t cell_blocks, blocks_with_input[kReceptors];
 inline int64_t now() { return std::chrono::steady_clock::now().time_since_epoch().count(); }
 }  // namespace prof
 #define PROF_START int64_t prof_t = prof::now();
@@ -66,7 +67,7 @@ extern "C" void JaxarmProfileRead(int64_t* out) {   // ns per phase, then the ni
   out[prof::kNumPhases + 2] = prof::tag_checks;
   out[prof::kNumPhases + 3] = prof::steps;
   out[prof::kNumPhases + 4] = prof::cell_blocks;
-  for (int r = 0; r < 4; ++r) out[prof::kNumPhases + 5 + r] = prof::blocks_with_input[r];
+  for (int r = 0; r < prof::kReceptors; ++r) out[prof::kNumPhases + 5 + r] = prof::blocks_with_input[r];
 }
 extern "C" void JaxarmProfileReset() {
   for (int k = 0; k < prof::kNumPhases; ++k) prof::ns[k] = 0;
@@ -415,6 +416,9 @@ struct CellArrays {  // the cells' state (updated in place), this step's input, 
 };
 
 enum Receptor { kRecAmpa, kRecNmda, kRecGabaProx, kRecGabaDist };   // their rows of CellArrays::in, in order
+#ifdef JAXARM_PROFILE
+static_assert(kRecGabaDist + 1 == prof::kReceptors, "one profiling counter per receptor");
+#endif
 
 template <Receptor R>
 inline float* component(const CellArrays& s) {   // receptor R's component of every cell
