@@ -256,22 +256,15 @@ ALWAYS_INLINE T event_load(T w, float e_rev, float max_jump_fraction) {
   return -e_rev * fastmath::log1p(-simd::min(w / e_rev, simd::splat<T>(max_jump_fraction)));
 }
 
-// Batch axes a call may carry (nested vmaps); more is an error of the call, not a silent truncation.
-constexpr int kMaxBatchRank = 8;
-typedef std::array<int64_t, kMaxBatchRank> BatchIndex;
-
 struct View {  // one input or output: base pointer, per-network element count, element size, batch strides
   char* data;
   int64_t per_network;
   int64_t elem;
-  int batch_rank;
-  BatchIndex batch_dims;
+  std::vector<int64_t> batch_dims;
 };
 
-constexpr int64_t kMaxGroups = 8;   // spike groups (NetworkSpec.spike_groups) a call may have
-
 struct Attrs {
-  int64_t n_steps, n_slots, n_groups, sequential, on_event, per_event, exc[kMaxGroups];
+  int64_t n_steps, n_slots, n_groups, sequential, on_event, per_event, exc[8];
   float dt_ms;
   // NetworkSpec.physics, mV and 1/mV
   float e_ampa, e_nmda, e_gaba, mg, mg0, mg_slope, vm_min, vm_max, max_jump_fraction;
@@ -285,9 +278,9 @@ inline T* at(const View& v, int64_t offset) {
 }
 
 // Batch offset of input v for the network with multi-index idx (broadcast where v has size 1).
-inline int64_t batch_offset(const View& v, const BatchIndex& idx) {
+inline int64_t batch_offset(const View& v, const std::vector<int64_t>& idx) {
   int64_t off = 0;
-  for (int d = 0; d < v.batch_rank; ++d) off = off * v.batch_dims[d] + (v.batch_dims[d] == 1 ? 0 : idx[d]);
+  for (size_t d = 0; d < idx.size(); ++d) off = off * v.batch_dims[d] + (v.batch_dims[d] == 1 ? 0 : idx[d]);
   return off;
 }
 
@@ -607,28 +600,8 @@ void jumps(const CellArrays& arrays, const CellConstantsView& consts) {
   receptor_jumps<Seq, kRecGabaDist>(s, c);
 }
 
-// A thread's per-step buffers (run_network), kept from call to call
-struct Scratch {
-  std::vector<uint32_t> u;
-  std::vector<int32_t> noise_blocks, listed, fired;
-  std::vector<uint8_t> spiked;
-  std::vector<float> v, row;
-};
-
-Scratch& thread_scratch() {
-  thread_local Scratch scratch;
-  return scratch;
-}
-
-// b as a fresh std::vector<T>(size, value) would be, without a new allocation once it has been that large
-template <class T>
-std::vector<T>& fill(std::vector<T>& b, int64_t size, T value) {
-  b.assign(size_t(size), value);
-  return b;
-}
-
 template <bool PerEvent>
-void run_network(const std::vector<View>& in, const std::vector<View>& out, const BatchIndex& idx,
+void run_network(const std::vector<View>& in, const std::vector<View>& out, const std::vector<int64_t>& idx,
                  int64_t flat, const Attrs& a) {
   auto I = [&](int k) { return batch_offset(in[k], idx); };
   const int64_t n = in[kAmpa].per_network;
@@ -698,7 +671,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     const int32_t *in_plastic, *in_pre;
     int64_t out_width, in_width;
   };
-  std::array<Tables, kMaxGroups> groups;
+  std::vector<Tables> groups(a.n_groups);
   for (int64_t g = 0; g < a.n_groups; ++g) {
     const int base = kGroupTables + kTablesPerGroup * g;
     groups[g] = Tables{at<int32_t>(in[base], I(base)), at<int32_t>(in[base + 1], I(base + 1)),
@@ -707,8 +680,7 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   }
   // Row widths: per-network element count / rows, rows = that group's cell count + 1.
   {
-    std::array<int64_t, kMaxGroups> rows;
-    rows.fill(1);
+    std::vector<int64_t> rows(a.n_groups, 1);
     for (int64_t i = 0; i < n; ++i) rows[cell_group[i]] += 1;
     for (int64_t g = 0; g < a.n_groups; ++g) {
       const int base = kGroupTables + kTablesPerGroup * g;
@@ -752,17 +724,13 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
 
   // Per-step scratch. The step is split into passes the compiler vectorises (noise, the cells) and scalar passes
   // over the spikes (a few per step).
-  // (the calling thread's buffers, kept from call to call: allocating them per call was 4 % of a closed-loop
-  // network-second in malloc and free; each is filled as a fresh one was)
-  Scratch& scratch = thread_scratch();
-  std::vector<uint32_t>& u_buf = fill(scratch.u, n, 0u);
-  std::vector<int32_t>& noise_blocks = fill(scratch.noise_blocks, n / simd::kLanes + 1, 0);
+  std::vector<uint32_t> u_buf(n);
+  std::vector<int32_t> noise_blocks(n / simd::kLanes + 1);
   // byte flags, padded to whole 8-byte words (zero) so they can be scanned a word at a time
-  std::vector<uint8_t>& spk_buf = fill(scratch.spiked, n + 8, uint8_t(0));
-  std::vector<float>& v_buf = fill(scratch.v, n, 0.0f);
-  std::vector<int32_t>& listed_buf = fill(scratch.listed, n + simd::kLanes, 0);
-  std::vector<int32_t>& fired = scratch.fired;
-  fired.clear();
+  std::vector<uint8_t> spk_buf(n + 8, 0);
+  std::vector<float> v_buf(n);
+  std::vector<int32_t> listed_buf(n + simd::kLanes);
+  std::vector<int32_t> fired;
   fired.reserve(n);
   const CellConstantsView cc{rmp,      vth,      vblock,       ahpwt,    post_excess, d_ampa,  d_nmda,
                              d_gprox,  d_gdist,  d_ahp,        d_rr,     d_rr_first,  n_ref,   e_ampa,
@@ -770,8 +738,8 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
                              mg_ratio, a.vm_min, a.vm_max};
   // a fired cell's row of weights (loads), gathered then converted vectorised
   int64_t max_width = 0;
-  for (int64_t g = 0; g < a.n_groups; ++g) max_width = std::max(max_width, groups[g].out_width);
-  std::vector<float>& row_buf = fill(scratch.row, max_width, 0.0f);
+  for (const Tables& tb : groups) max_width = std::max(max_width, tb.out_width);
+  std::vector<float> row_buf(max_width);
   float* __restrict__ row_w = row_buf.data();
   uint32_t* __restrict__ ub = u_buf.data();
   uint8_t* __restrict__ sb = spk_buf.data();
@@ -909,8 +877,7 @@ View view_of(const ffi::AnyBuffer& b, int base_rank, int batch_rank) {
   v.elem = int64_t(ffi::ByteWidth(b.element_type()));
   v.per_network = 1;
   for (int64_t d = int64_t(dims.size()) - base_rank; d < int64_t(dims.size()); ++d) v.per_network *= dims[d];
-  v.batch_rank = batch_rank;
-  for (int d = 0; d < batch_rank; ++d) v.batch_dims[d] = dims[d];
+  for (int d = 0; d < batch_rank; ++d) v.batch_dims.push_back(dims[d]);
   return v;
 }
 
@@ -921,21 +888,12 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
                      float vm_max_mv, float max_jump_fraction, int64_t delay_bits) {
   const int64_t n_groups = int64_t(excitatory.size());
   const int64_t n_in = kGroupTables + kTablesPerGroup * n_groups;
-  if (int64_t(args.size()) != n_in || int64_t(rets.size()) != kNumOut || n_groups > kMaxGroups)
+  if (int64_t(args.size()) != n_in || int64_t(rets.size()) != kNumOut || n_groups > 8)
     return ffi::Error::InvalidArgument("jaxarm chunk kernel: wrong number of arguments or results");
   auto step0 = args.get<ffi::AnyBuffer>(0);
   if (step0.has_error()) return step0.error();
   const int batch_rank = int(step0->dimensions().size());
-  if (batch_rank > kMaxBatchRank)
-    return ffi::Error::InvalidArgument("jaxarm chunk kernel: more than " + std::to_string(kMaxBatchRank) +
-                                       " batch axes");
-  // kept from call to call, as the scratch; named through references, which the worker threads' lambda
-  // captures (a thread_local named in the lambda would be each worker's own, empty one)
-  thread_local std::vector<View> in_views, out_views;
-  std::vector<View>& in = in_views;
-  std::vector<View>& out = out_views;
-  in.resize(n_in);
-  out.resize(kNumOut);
+  std::vector<View> in(n_in), out(kNumOut);
   for (int64_t k = 0; k < n_in; ++k) {
     auto b = args.get<ffi::AnyBuffer>(k);
     if (b.has_error()) return b.error();
@@ -946,8 +904,7 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
                                          std::to_string(base + batch_rank));
     in[k] = view_of(*b, base, batch_rank);
   }
-  BatchIndex batch;
-  batch.fill(1);
+  std::vector<int64_t> batch(batch_rank, 1);
   for (const View& v : in)
     for (int d = 0; d < batch_rank; ++d) batch[d] = std::max(batch[d], v.batch_dims[d]);
   for (int64_t k = 0; k < kNumOut; ++k) {
@@ -964,7 +921,7 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
   a.batched = total > 1;
 
   auto work = [&](int64_t lo, int64_t hi) {
-    BatchIndex idx{};
+    std::vector<int64_t> idx(batch_rank);
     for (int64_t f = lo; f < hi; ++f) {
       int64_t rem = f;
       for (int d = batch_rank - 1; d >= 0; --d) {
