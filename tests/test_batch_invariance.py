@@ -12,6 +12,8 @@ The closed loop runs through ``lax.map`` here, as a CPU device runs its share. A
 --networks-at-once 0``) gives the same network state, but its epoch summary's hand distances differ from the mapped
 ones by about 1e-6 m (the hand's sines and cosines compiled into other code).
 """
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -48,9 +50,15 @@ def inputs():
     return u, q0
 
 
+@functools.lru_cache(maxsize=None)
+def musculoskeletal_arm(backend: str):
+    """One arm per backend for every batch below (building one loads and relaxes the MuJoCo model)."""
+    return make_arm("musculoskeletal", backend=backend)
+
+
 def arm_paths(u, q0, backend="fast"):
     """Joint angles (batch, T, 2) rad of the musculoskeletal arm from q0 under excitations u, one vmap."""
-    arm = make_arm("musculoskeletal", backend=backend)
+    arm = musculoskeletal_arm(backend)
 
     def one(u, q0):
         def body(s, ut):
@@ -70,7 +78,7 @@ def test_the_musculoskeletal_arm_gives_the_same_bits_in_every_batch_size(inputs)
     np.testing.assert_array_equal(arm_paths(u[N - 5:], q0[N - 5:]), everyone[N - 5:], err_msg="the last 5 alone")
 
 
-@pytest.mark.slow   # three MJX compilations, ~20 s each
+@pytest.mark.slow   # three MJX compilations, about 30 s in all
 def test_the_mjx_arm_gives_the_same_bits_in_every_batch_size(inputs):
     """The reference backend too: its own sums (MuJoCo's kinematics and mass matrix) are shape-independent here."""
     u, q0 = inputs
@@ -85,7 +93,7 @@ def test_positive_control_xla_dot_of_the_muscle_paths_depends_on_the_batch(input
     """The products the arm used before: the monomials times the fit's coefficients through ``@``. Their bits for
     a network change with the batch; the ordered sum's do not."""
     _, q0 = inputs
-    geometry = make_arm("musculoskeletal").geometry
+    geometry = musculoskeletal_arm("fast").geometry
     coef = geometry.all_coef
 
     def paths(f, q):
