@@ -1,9 +1,9 @@
 """Where a coarser clock loses firing rate: each population's rate at a coarse dt against a fine one, for the full
 network and for variants that remove one suspect at a time.
 
-    python experiments/dt_ablation.py --seeds 0,1,2 --json-out docs/results/dt_ablation.json   # 16 networks x 20 s each, ~12 min
+    python experiments/dt_ablation.py --seeds 0,1,2 --json-out docs/results/dt_ablation.json   # 16 networks x 20 s each, ~10 min
 
-At dt = 0.5 ms the M populations fire 15-22 % less than at 0.05 ms under the training drive ([model: time
+At dt = 0.5 ms the M populations fire 10-20 % less than at 0.05 ms under the training drive ([model: time
 step](../docs/model.md#the-spiking-network-in-detail)), which keeps the default step at 0.25 ms and the kernel at
 4,000 steps per network-second. A variant that brings its coarse-dt rates back to the fine ones names the cause; one
 that leaves the loss in place rules its suspect out. Every variant runs the same networks (wiring and noise keys
