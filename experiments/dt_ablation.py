@@ -75,10 +75,11 @@ def _no_inhibitory_noise(spec):
 def variants(coarse_dt_ms: float) -> dict[str, dict]:
     """NetworkConfig keyword arguments of each variant (``spec`` where the network itself changes)."""
     spec = NetworkConfig().spec
+    isolated = _zero_from(spec, set(spec.names) | {"P"})
     return {
         "full": {},
-        "isolated": {"spec": _zero_from(spec, set(spec.names) | {"P"})},
-        "isolated_no_inhibitory_noise": {"spec": _no_inhibitory_noise(_zero_from(spec, set(spec.names) | {"P"}))},
+        "isolated": {"spec": isolated},
+        "isolated_no_inhibitory_noise": {"spec": _no_inhibitory_noise(isolated)},
         "no_inhibitory_noise": {"spec": _no_inhibitory_noise(spec)},
         "no_inhibition": {"spec": _zero_from(spec, INHIBITORY)},
         "no_excitatory_recurrence": {"spec": _zero_from(spec, EXCITATORY_RECURRENT)},

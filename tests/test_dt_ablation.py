@@ -21,10 +21,8 @@ def _wiring(dt_ms, **kw):
 def test_each_variant_changes_only_its_suspect():
     table = variants(0.5)
     base, pre0, weight0, delay0, nmda0 = _wiring(0.5)
-    pop_of = np.empty(base.config.n_all, object)
-    for p in list(base.config.spec.names) + ["P"]:
-        pop_of[base.pops.slice(p)] = p
-    pre_pop = pop_of[pre0[:-1]]              # the last synapse is the padding row
+    names = np.array(base.config.populations)
+    pre_pop = names[base.pops.population_of()[pre0[:-1]]]      # the last synapse is the padding row
 
     _, pre, weight, delay, _ = _wiring(0.5, **table["isolated"])
     assert np.all(weight == 0.0) and np.array_equal(pre, pre0) and np.array_equal(delay, delay0)
