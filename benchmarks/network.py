@@ -45,7 +45,8 @@ DEFAULT_SECONDS = {1: 2.0, 60: 1.0, 300: 0.5}
 
 
 def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, seed: int, warmup: float,
-           kernel: str = "auto", threads: int = 1, at_once: int | None = None) -> dict:
+           kernel: str = "auto", threads: int = 1, at_once: int | None = None,
+           same_step_inhibition: str | None = None) -> dict:
     """Time one network count in this process."""
     sys.path.insert(0, REPO)
     import jax
@@ -60,6 +61,8 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
     config = NetworkConfig(kernel=kernel, native_threads=threads)
     if dt_ms is not None:
         config = dataclasses.replace(config, dt_ms=dt_ms)
+    if same_step_inhibition is not None:
+        config = dataclasses.replace(config, same_step_inhibition=same_step_inhibition)
     assert config.plasticity_bookkeeping
     net = Network(config)
     keys = jax.random.split(jax.random.key(seed), 2 * n_networks)
@@ -88,7 +91,8 @@ def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, s
     counters = state.net.counters
     spikes = np.asarray(state.net.spike_count)
     return {
-        "networks": n_networks, "dt_ms": config.dt_ms, "simulated_s": seconds, "repeats": repeats,
+        "networks": n_networks, "dt_ms": config.dt_ms, "same_step_inhibition": config.same_step_inhibition,
+        "simulated_s": seconds, "repeats": repeats,
         "kernel": "native" if net.uses_native_kernel else "xla", "native_threads": config.native_threads,
         "warmup_s": warmup, "networks_at_once": at_once,
         "network_s_per_s": n_networks * seconds / float(np.median(walls)),
@@ -144,12 +148,14 @@ def main(argv=None) -> int:
     ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                     help="networks stepped together, groups one after the other (default: the commands' default on "
                          "this backend, 8 on a CPU; 0: one vmap of all)")
+    ap.add_argument("--same-step-inhibition", choices=["end_of_step", "random_order"], default=None,
+                    help="NetworkConfig.same_step_inhibition (default: NetworkConfig's)")
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker is not None:
         seconds = args.seconds or DEFAULT_SECONDS.get(args.worker, 1.0)
         print(json.dumps(worker(args.worker, args.dt, seconds, args.repeats, args.seed, args.warmup, args.kernel,
-                                args.threads, args.networks_at_once)))
+                                args.threads, args.networks_at_once, args.same_step_inhibition)))
         return 0
 
     installed = brian2_installed()
@@ -168,6 +174,8 @@ def main(argv=None) -> int:
             cmd += ["--networks-at-once", str(args.networks_at_once)]
         if args.dt is not None:
             cmd += ["--dt", str(args.dt)]
+        if args.same_step_inhibition is not None:
+            cmd += ["--same-step-inhibition", args.same_step_inhibition]
         if args.seconds is not None:
             cmd += ["--seconds", str(args.seconds)]
         out = subprocess.run(cmd, capture_output=True, text=True, check=True)
@@ -187,7 +195,8 @@ def main(argv=None) -> int:
         "overflows": sum(r["lost_spikes"] + r["wiring_out_overflow"] for r in runs.values()),
         "extra_passes_per_network_s": {str(n): r["extra_passes_per_network_s"] for n, r in runs.items()},
         "kernel": any_run["kernel"], "native_threads": any_run["native_threads"],
-        "dt_ms": any_run["dt_ms"], "block_steps": any_run["block_steps"], "spike_capacity": any_run["spike_capacity"],
+        "dt_ms": any_run["dt_ms"], "same_step_inhibition": any_run["same_step_inhibition"],
+        "block_steps": any_run["block_steps"], "spike_capacity": any_run["spike_capacity"],
         "cpu_count": os.cpu_count(), "load_average_at_end": os.getloadavg(),
         "brian2": ("compared: benchmarks/brian2_network.py" if compare else
                    "installed; comparison skipped (--no-brian2)" if installed else

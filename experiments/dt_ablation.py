@@ -22,7 +22,10 @@ from each of ``--seeds``) at both steps under the training drive of ``network_ra
   rounding plays no part;
 * ``no_nmda``: the NMDA/AMPA ratio 0;
 * ``linear_summation``, ``crossing_per_event``, ``threshold_on_event``: the NetworkConfig options of the same names
-  ([model: deviations](../docs/model.md#every-deviation-from-the-original)).
+  ([model: deviations](../docs/model.md#every-deviation-from-the-original));
+* ``random_order`` (and with ``delays_on_grid``): ``NetworkConfig.same_step_inhibition = "random_order"``, the
+  remedy for the same-step inhibition above (a crossing by excitation fires when a coin says the excitation came
+  first), at both steps.
 
 The relative differences of the coarse step from the fine one per population are printed and written, with the
 standard error that Poisson counting alone would give; the networks' own variability adds to it, which is why
@@ -88,6 +91,9 @@ def variants(coarse_dt_ms: float) -> dict[str, dict]:
         "linear_summation": {"event_summation": "linear"},
         "crossing_per_event": {"crossing": "per_event"},
         "threshold_on_event": {"threshold_test": "on_event"},
+        "random_order": {"same_step_inhibition": "random_order"},
+        "random_order_delays_on_grid": {"same_step_inhibition": "random_order",
+                                        "spec": _delays_on_grid(spec, coarse_dt_ms)},
     }
 
 

@@ -214,6 +214,13 @@ CROSSING_HELP = ("a step whose input lifts a cell from below threshold past Vblo
                  "every event; NetworkConfig.crossing)")
 
 
+SAME_STEP_INHIBITION = ("end_of_step", "random_order")
+SAME_STEP_INHIBITION_HELP = ("a step whose excitation lifts a cell past threshold and whose inhibition brings it back: "
+                             "end_of_step (default; no spike) or random_order (fires where a coin per cell and step "
+                             "says the excitation came first, as the event-driven original would; halves what a "
+                             "0.5 ms step loses; NetworkConfig.same_step_inhibition)")
+
+
 def _add_test_noise_option(ap, default="unlimited"):
     ap.add_argument("--test-em-noise-events", choices=TEST_EM_NOISE_EVENTS, default=default,
                     help="EM test noise: unlimited (default) or netstim (each EM cell's noise stops after "
@@ -276,6 +283,8 @@ def train_main(argv: list[str] | None = None) -> int:
                     help="when a cell's threshold is tested: every_step (default) or on_event (only in steps with "
                          "input, as the event-driven original; NetworkConfig.threshold_test)")
     ap.add_argument("--crossing", choices=CROSSINGS, default=None, help=CROSSING_HELP)
+    ap.add_argument("--same-step-inhibition", choices=SAME_STEP_INHIBITION, default=None,
+                    help=SAME_STEP_INHIBITION_HELP)
     ap.add_argument("--no-readout-clip", dest="readout_clip", action="store_const", const=False, default=None,
                     help="do not clip the motor excitations to [0, 1] (the hoc code does not; the default clips, as "
                          "the paper's thresholded readout and every published preset; NetworkConfig.readout_clip)")

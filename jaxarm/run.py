@@ -39,7 +39,7 @@ from jaxarm.task.interface import TaskInterface
 from jaxarm.train import EpochSummary, TestResult, Trained, fresh_noise, make_train
 
 #: NetworkConfig fields the commands set from their options; recorded in a run's meta when not the default.
-NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "readout_clip")
+NETWORK_OPTIONS = ("dt_ms", "threshold_test", "crossing", "same_step_inhibition", "readout_clip")
 
 
 @functools.lru_cache(maxsize=16)

@@ -41,14 +41,17 @@ def assert_states_close(a, b):
 
 
 @needs_native
-@pytest.mark.parametrize("summation,threshold_test,crossing", [   # the options' variants: slow suite (8-min budget)
-    ("sequential", "every_step", "after_step"),
-    *(pytest.param(*v, marks=pytest.mark.slow) for v in [("linear", "every_step", "after_step"),
-                                                         ("sequential", "on_event", "after_step"),
-                                                         ("sequential", "every_step", "per_event")])])
-def test_batched_run_matches_xla(summation, threshold_test, crossing):
+@pytest.mark.parametrize("summation,threshold_test,crossing,inhibition", [   # most variants: slow suite (8-min budget)
+    ("sequential", "every_step", "after_step", "end_of_step"),
+    ("sequential", "every_step", "after_step", "random_order"),
+    *(pytest.param(*v, marks=pytest.mark.slow) for v in [("linear", "every_step", "after_step", "end_of_step"),
+                                                         ("sequential", "on_event", "after_step", "end_of_step"),
+                                                         ("sequential", "every_step", "per_event", "end_of_step"),
+                                                         ("linear", "on_event", "per_event", "random_order")])])
+def test_batched_run_matches_xla(summation, threshold_test, crossing, inhibition):
     """8 networks, own wiring each, 250 ms from rest (the start-of-run P volley included)."""
-    nx, nn = pair(event_summation=summation, threshold_test=threshold_test, crossing=crossing)
+    nx, nn = pair(event_summation=summation, threshold_test=threshold_test, crossing=crossing,
+                  same_step_inhibition=inhibition)
     keys = jax.random.split(jax.random.key(3), 8)
     wirings = jax.vmap(nx.make_wiring)(keys)
     s0 = jax.vmap(lambda k: start(nx, k))(jax.random.split(jax.random.key(4), 8))

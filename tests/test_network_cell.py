@@ -162,6 +162,39 @@ def test_per_event_crossing_fires_a_volley_that_jumps_past_vblock():
         NetworkConfig(crossing="sometimes")
 
 
+@pytest.mark.parametrize("sequential", [False, True])
+def test_random_order_fires_where_the_excitation_came_first(sequential):
+    """One step brings an E cell at rest an excitatory event that alone crosses VTH and an inhibitory (FS) event that
+    brings the sum back below. The event-driven original (reference_intf6) fires if the excitatory event comes
+    first and not otherwise; the end-of-step test never fires; "random_order" fires exactly where its coin says the
+    excitation came first, and a coin never fires a cell without inhibition in the step (the end-of-step test
+    decides that alone) or within its refractory period."""
+    config = NetworkConfig(dt_ms=0.5)
+    const = _one_cell_constants(config, 0)   # an E cell: RMP -65, VTH -40, Vblock -25 mV
+    w_e, w_i = 27.0, 5.0
+    t = config.dt_ms
+    first_e, _ = reference_intf6([(t, "E", w_e), (t, "FS", w_i)], PAPER_CELL_PARAMS["E"], t)
+    first_i, _ = reference_intf6([(t, "FS", w_i), (t, "E", w_e)], PAPER_CELL_PARAMS["E"], t)
+    assert first_e == [t] and first_i == []
+    e_load = C.event_load(jnp.array([w_e]), 65.0) if sequential else jnp.array([w_e])
+    i_load = C.event_load(jnp.array([w_i]), 15.0) if sequential else jnp.array([w_i])
+    zero = jnp.zeros(1)
+
+    def fires(cells, order, gaba=i_load):
+        return bool(C.cell_step(cells, e_load, 0.1 * jnp.array([w_e]), gaba, zero, const, sequential=sequential,
+                                excitation_first=order)[1][0])
+
+    rest = C.init_cells(1)
+    assert not fires(rest, None)
+    assert fires(rest, jnp.array([True])) and not fires(rest, jnp.array([False]))
+    # without inhibition the step's end decides, whatever the coin; a refractory cell never fires
+    assert fires(rest, jnp.array([False]), gaba=zero)
+    refractory = rest._replace(steps_since_spike=jnp.array([1], jnp.int32))
+    assert not fires(refractory, jnp.array([True]))
+    with pytest.raises(ConfigError, match="same_step_inhibition"):
+        NetworkConfig(same_step_inhibition="sometimes")
+
+
 def test_refractory_periods_in_steps():
     for dt, expected in [(0.1, (50, 25, 25)), (0.5, (10, 5, 5)), (1.0, (5, 3, 3))]:
         const = C.cell_constants(NetworkConfig(dt_ms=dt))

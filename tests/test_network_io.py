@@ -98,6 +98,29 @@ def test_noise_counts_are_poisson_at_the_table_rates():
     np.testing.assert_allclose(em[groups != 0].mean(), 50.0, rtol=0.02)
 
 
+def test_order_coins_are_fair_and_independent_of_the_noise():
+    """The coins of same_step_inhibition = "random_order" (N.excitation_first): probability 1/2, uncorrelated across
+    cells and steps, and independent of the AMPA lane's own draw in the same step (which picks the cells whose
+    coins are read). 2,000 steps x 512 cells = 1.02 M coins: the standard error of a proportion is 0.0005, so
+    +-0.003 (6 s.e.) fails a bias of 0.005 with certainty; among the ~50 k coins of steps with an AMPA event,
+    +-0.01 (4.5 s.e.) fails a bias of 0.02 (power > 0.99)."""
+    config = NetworkConfig(dt_ms=0.5)
+    noise = N.init_noise(config, jax.random.key(5))
+    steps = jnp.arange(1, 2001)
+    coins = np.asarray(jax.vmap(lambda m: N.excitation_first(noise, m))(steps)).astype(float)   # (t, cells)
+    events = np.asarray(jax.vmap(lambda m: N.noise_counts(noise, m))(steps))[:, 0] > 0          # AMPA lanes
+    assert coins.mean() == pytest.approx(0.5, abs=0.003)
+    assert events.sum() > 40_000
+    assert coins[events].mean() == pytest.approx(0.5, abs=0.01)
+    assert coins[~events].mean() == pytest.approx(0.5, abs=0.003)
+    lane_corr = np.mean([np.corrcoef(coins[:, i], coins[:, i + 1])[0, 1] for i in range(511)])
+    step_corr = np.mean([np.corrcoef(coins[:-1, i], coins[1:, i])[0, 1] for i in range(512)])
+    assert max(abs(lane_corr), abs(step_corr)) < 0.01
+    # another network's coins are another stream
+    other = np.asarray(jax.vmap(lambda m: N.excitation_first(N.init_noise(config, jax.random.key(6)), m))(steps))
+    assert np.mean(other == coins.astype(bool)) == pytest.approx(0.5, abs=0.003)
+
+
 def test_noise_variance_matches_poisson():
     config = NetworkConfig(dt_ms=1.0)
     noise = N.init_noise(config, jax.random.key(3))

@@ -29,6 +29,9 @@ Differences from the event-driven original (the "LIF approximation" of the desig
   the original gives (65 - V)(1 - (1 - w/65)^k) instead of k w (1 - V/65) — the difference is second order in w/65
   and matters only for volleys of many simultaneous inputs;
 * spikes, delays and the refractory period live on the dt grid (a spike is tested, and happens, at the end of a step);
+  so by default a step whose excitation lifts a cell above threshold and whose inhibition brings it back below gives
+  no spike, where the original fires if the excitatory event came first; ``NetworkConfig.same_step_inhibition =
+  "random_order"`` draws that order per cell and step;
 * the original zeroes components below hoc_epsilon and takes exp from a 5000-point table; we use exact exp;
 * the proximal AMPA/NMDA components VAM/VNM receive no input in this model (every excitatory synapse and all
   excitatory noise is distal), so they are identically 0 and omitted.
@@ -131,7 +134,7 @@ def mg_block(v_abs, physics: SynapsePhysics = SynapsePhysics()):
 
 def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: CellConstants,
               sequential: bool = False, on_event: bool = False, per_event_crossing: bool = False,
-              surrogate_width_mv: float = 0.0, surrogate_scale: float = 1.0,
+              excitation_first=None, surrogate_width_mv: float = 0.0, surrogate_scale: float = 1.0,
               physics: SynapsePhysics = SynapsePhysics()):
     """Advance every cell by one step and apply this step's input (summed weights, mV, each (n_cells,)).
 
@@ -141,6 +144,10 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
     input in this step (``NetworkConfig.threshold_test = "on_event"``). ``per_event_crossing``
     (``NetworkConfig.crossing = "per_event"``): a cell below threshold before this step's input and above Vblock after
     it spikes, as the original, which tests after every event, would have at the event that crossed the threshold.
+    ``excitation_first`` ((n_cells,) bool, ``NetworkConfig.same_step_inhibition = "random_order"``): whether this
+    step's excitatory events come before its inhibitory ones; where they do and V after the excitatory jumps alone
+    passes the threshold test, the cell spikes even if the inhibitory jumps bring it back below, as the original
+    would have at the excitatory event (None: the end-of-step test alone, as if inhibition came first).
     ``physics``: reversal potentials, Mg block and clamp (the spec's). Returns (new state, spiked (n_cells,) bool).
     """
     E_AMPA, E_NMDA, E_GABA = physics.e_ampa_mv, physics.e_nmda_mv, physics.e_gaba_mv  # noqa: N806
@@ -166,6 +173,16 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
         gaba_prox_jump, gaba_dist_jump = gaba_prox_in * gaba_factor, gaba_dist_in * gaba_factor
     ampa = jnp.maximum(ampa + ampa_jump, 0.0)
     nmda = jnp.where(nmda < E_NMDA, nmda + nmda_in * mg_block(c.rmp + v, physics) * (1.0 - v * (1.0 / E_NMDA)), nmda)
+    if excitation_first is not None:
+        # V after the excitatory jumps alone (summed in the end-of-step test's order), tested as that test does; the
+        # flag needs both kinds of input in this step (without inhibition the end-of-step test is the same test)
+        vm_exc = jnp.clip(c.rmp + ampa + nmda + gaba_prox + gaba_dist + ahp, physics.vm_min_mv, physics.vm_max_mv)
+        exc_below_block = vm_exc <= c.vblock
+        if per_event_crossing:
+            exc_below_block = exc_below_block | (c.rmp + v <= c.vth + excess)
+        fires_first = (excitation_first & (since >= c.n_refractory) & ((ampa_in != 0.0) | (nmda_in != 0.0))
+                       & ((gaba_prox_in != 0.0) | (gaba_dist_in != 0.0)) & (vm_exc > c.vth + excess)
+                       & exc_below_block)
     gaba_prox = jnp.where(gaba_prox > E_GABA, jnp.minimum(gaba_prox - gaba_prox_jump, 0.0), gaba_prox)
     gaba_dist = jnp.where(gaba_dist > E_GABA, jnp.minimum(gaba_dist - gaba_dist_jump, 0.0), gaba_dist)
 
@@ -179,6 +196,8 @@ def cell_step(s: CellState, ampa_in, nmda_in, gaba_prox_in, gaba_dist_in, c: Cel
         # input crossed the window (VTHC, Vblock] on the way up, where one of its events would have fired the cell
         below_block = below_block | (c.rmp + v <= c.vth + excess)
     spiked = crossed & below_block
+    if excitation_first is not None:
+        spiked = spiked | fires_first
     out = spiked
     if surrogate_width_mv:
         out = surrogate.spike_value(spiked, vm - (c.vth + excess), since >= c.n_refractory, surrogate_width_mv,

@@ -259,10 +259,12 @@ class Network:
         syn_in, ring = syn_mod.read_slot(state.ring, m, self.n_slots, n)
         counts, noise = noise_mod.draw_events(state.noise, m)
         drive = counts * self.noise_weights  # (3, n): AMPA, GABA-prox, GABA-dist
+        order = noise_mod.excitation_first(state.noise, m) if c.same_step_inhibition == "random_order" else None
         cells, net_spiked = cell_mod.cell_step(
             state.cells, syn_in[0] + drive[0], syn_in[1], syn_in[2] + drive[1], syn_in[3] + drive[2],
             self.cell_constants, sequential=c.event_summation == "sequential",
             on_event=c.threshold_test == "on_event", per_event_crossing=c.crossing == "per_event",
+            excitation_first=order,
             surrogate_width_mv=c.surrogate_width_mv if self.differentiable else 0.0, surrogate_scale=c.surrogate_scale,
             physics=c.spec.physics)
         p, p_spiked = proprio_mod.p_step(state.p, m)

@@ -148,6 +148,20 @@ def noise_counts(noise: NoiseState, step):
     return jnp.sum(u[None] >= noise.thresholds, axis=0, dtype=jnp.int32).astype(jnp.float32)
 
 
+#: Salt of the order coins' stream (:func:`excitation_first`): XORed into the AMPA lane's hash input, so a coin and
+#: that lane's noise draw of the same step are different inputs of the bijection ``hash32``.
+ORDER_SALT = np.uint32(0x5BD1E995)
+
+
+def excitation_first(noise: NoiseState, step):
+    """(n_cells,) bool: whether, in clock step ``step``, a cell's excitatory events of that step come before its
+    inhibitory ones (``NetworkConfig.same_step_inhibition = "random_order"``); probability 1/2 each, independent
+    across cells and steps and of the noise counts (a test checks both): the top bit of
+    ``hash32(ampa_lane_key ^ hash32(step * phi + step_seed) ^ ORDER_SALT)``."""
+    s = hash32(jnp.asarray(step).astype(jnp.uint32) * _GOLDEN + noise.step_seed)
+    return (hash32(noise.lane_key[0] ^ s ^ ORDER_SALT) >> 31) != 0
+
+
 def draw_events(noise: NoiseState, step):
     """The events of clock step ``step`` within each lane's budget: ((3, n_cells) float32 counts, noise with the
     budget spent). Unlimited lanes (``events_left >= UNLIMITED_EVENTS``) give :func:`noise_counts`'s counts and

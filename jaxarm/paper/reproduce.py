@@ -500,6 +500,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt-ms", type=float, default=None,
                     help="network clock step, ms (default 0.25, what every preset was searched with; e.g. 0.1 to "
                          "check that a count does not depend on the step)")
+    from jaxarm.experiment import SAME_STEP_INHIBITION, SAME_STEP_INHIBITION_HELP
+    ap.add_argument("--same-step-inhibition", choices=SAME_STEP_INHIBITION, default=None,
+                    help=SAME_STEP_INHIBITION_HELP + "; every preset was searched with end_of_step")
     add_network_arguments(ap, "; every preset was searched on the paper's network")
     ap.add_argument("--no-progress", action="store_true")
     parallel_cli.add_arguments(ap)

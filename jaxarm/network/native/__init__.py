@@ -242,6 +242,7 @@ def chunk(net: "Network", wiring: "Wiring", state: "State", params: "NetworkPara
     outs = call(*args, n_steps=np.int64(n_steps), n_slots=np.int64(net.n_slots),
                 sequential=np.int64(c.event_summation == "sequential"),
                 on_event=np.int64(c.threshold_test == "on_event"), per_event=np.int64(c.crossing == "per_event"),
+                random_order=np.int64(c.same_step_inhibition == "random_order"),
                 dt_ms=np.float32(c.dt_ms), excitatory=np.asarray(lay.group_is_excitatory, np.int64),
                 n_threads=np.int64(c.native_threads), delay_bits=np.int64(DELAY_BITS),
                 **{name: np.float32(getattr(ph, name)) for name in PHYSICS_ATTRIBUTES})

@@ -88,6 +88,7 @@ namespace {
 constexpr int32_t kSinceMax = 1 << 30;
 constexpr int32_t kNever = 1 << 30;
 constexpr uint32_t kGolden = 0x9E3779B9u;
+constexpr uint32_t kOrderSalt = 0x5BD1E995u;   // noise.ORDER_SALT
 
 // Inputs, in order (per-network shapes; see jaxarm/network/native/__init__.py).
 enum In {
@@ -264,7 +265,7 @@ struct View {  // one input or output: base pointer, per-network element count, 
 };
 
 struct Attrs {
-  int64_t n_steps, n_slots, n_groups, sequential, on_event, per_event, exc[8];
+  int64_t n_steps, n_slots, n_groups, sequential, on_event, per_event, random_order, exc[8];
   float dt_ms;
   // NetworkSpec.physics, mV and 1/mV
   float e_ampa, e_nmda, e_gaba, mg, mg0, mg_slope, vm_min, vm_max, max_jump_fraction;
@@ -404,7 +405,8 @@ struct CellConstantsView {   // per-cell constants (native_cell_floats) and the 
 // the cells do (in the paper's network): once the input of step t is complete, the cells with input are listed per
 // receptor and their jumps computed eight listed cells at a time (jumps, below). The last n % kLanes cells take the
 // same stages one cell at a time.
-// PerEvent: NetworkConfig.crossing = "per_event"; OnEvent: threshold_test = "on_event".
+// PerEvent: NetworkConfig.crossing = "per_event"; OnEvent: threshold_test = "on_event"; Order:
+// same_step_inhibition = "random_order" (a cell whose excitation came first and crossed fires: fires_first).
 struct CellArrays {  // the cells' state (updated in place), this step's input, and the per-step scratch
   float *ampa, *nmda, *gprox, *gdist, *ahp, *excess;
   int32_t* since;
@@ -413,6 +415,9 @@ struct CellArrays {  // the cells' state (updated in place), this step's input, 
   int32_t* listed;   // [n + kLanes] scratch: the cells with input at one receptor
   uint8_t* spiked;   // [n]
   int64_t n;
+  int32_t* fires_first;      // [n] (Order): set by this step's GABA jumps, read and cleared by its threshold test
+  const uint32_t* lane_key;  // the AMPA lanes' keys (Order: the coin excitation_first)
+  uint32_t order_s;          // hash32(m * phi + step_seed) ^ kOrderSalt of this step (Order)
 };
 
 enum Receptor { kRecAmpa, kRecNmda, kRecGabaProx, kRecGabaDist };   // their rows of CellArrays::in, in order
@@ -427,7 +432,7 @@ inline float* component(const CellArrays& s) {   // receptor R's component of ev
 
 // The lanes at i: with Threshold, the threshold test of the last step (its input in s.in, its V in s.v) and the
 // spikes' effects; with Decay, this step's decay, refractory bookkeeping and V.
-template <class T, bool PerEvent, bool OnEvent, bool Threshold, bool Decay>
+template <class T, bool PerEvent, bool OnEvent, bool Order, bool Threshold, bool Decay>
 ALWAYS_INLINE void cell_lanes(int64_t i, const CellArrays& s, const CellConstantsView& c) {
   using simd::load;
   typedef typename simd::IntOf<T>::type I;
@@ -448,6 +453,10 @@ ALWAYS_INLINE void cell_lanes(int64_t i, const CellArrays& s, const CellConstant
     if constexpr (OnEvent)    // the original tests only on an arriving event
       spike &= (load<T>(s.in + i) != 0.0f) | (load<T>(s.in + n + i) != 0.0f) |
                (load<T>(s.in + 2 * n + i) != 0.0f) | (load<T>(s.in + 3 * n + i) != 0.0f);
+    if constexpr (Order) {   // tested in full when set (refractory, threshold, block, inputs, coin)
+      spike |= load<I>(s.fires_first + i) != 0;
+      simd::store(s.fires_first + i, simd::splat_int<I>(0));
+    }
     simd::store_flag(s.spiked + i, spike);
     e = spike ? e - load<T>(c.ahpwt + i) : e;
     ex = spike ? load<T>(c.post_excess + i) : ex;
@@ -491,27 +500,34 @@ ALWAYS_INLINE T jumped(T comp, T v, T x, T rmp, const CellConstantsView& c) {
 }
 
 // Threshold (the last step's test and spikes' effects) and / or Decay (this step's) of every cell
-template <bool PerEvent, bool OnEvent, bool Threshold, bool Decay>
+template <bool PerEvent, bool OnEvent, bool Order, bool Threshold, bool Decay>
 void cell_pass(const CellArrays& arrays, const CellConstantsView& consts) {
   const CellArrays s = arrays;          // local copies: the stores through s's pointers cannot change them
   const CellConstantsView c = consts;
   const int64_t full = s.n - s.n % simd::kLanes;
-  for (int64_t i = 0; i < full; i += simd::kLanes) cell_lanes<simd::vf, PerEvent, OnEvent, Threshold, Decay>(i, s, c);
-  for (int64_t i = full; i < s.n; ++i) cell_lanes<float, PerEvent, OnEvent, Threshold, Decay>(i, s, c);
+  for (int64_t i = 0; i < full; i += simd::kLanes)
+    cell_lanes<simd::vf, PerEvent, OnEvent, Order, Threshold, Decay>(i, s, c);
+  for (int64_t i = full; i < s.n; ++i) cell_lanes<float, PerEvent, OnEvent, Order, Threshold, Decay>(i, s, c);
+}
+
+// direct calls: passing the instantiations through a generic lambda (a function pointer) made the kernel 3.4x
+// slower (2026-12-05, benchmarks/network.py at one network: 16 against 56 network-s per CPU-second)
+template <bool PerEvent, bool OnEvent, bool Order>
+void cell_pass_stages(bool threshold, bool decay, const CellArrays& s, const CellConstantsView& c) {
+  if (threshold && decay) cell_pass<PerEvent, OnEvent, Order, true, true>(s, c);
+  else if (threshold) cell_pass<PerEvent, OnEvent, Order, true, false>(s, c);
+  else cell_pass<PerEvent, OnEvent, Order, false, true>(s, c);
 }
 
 template <bool PerEvent>
-void cell_pass(bool on_event, bool threshold, bool decay, const CellArrays& s, const CellConstantsView& c) {
-  // direct calls: passing the instantiations through a generic lambda (a function pointer) made the kernel 3.4x
-  // slower (2026-12-05, benchmarks/network.py at one network: 16 against 56 network-s per CPU-second)
+void cell_pass(bool on_event, bool order, bool threshold, bool decay, const CellArrays& s,
+               const CellConstantsView& c) {
   if (on_event) {
-    if (threshold && decay) cell_pass<PerEvent, true, true, true>(s, c);
-    else if (threshold) cell_pass<PerEvent, true, true, false>(s, c);
-    else cell_pass<PerEvent, true, false, true>(s, c);
+    if (order) cell_pass_stages<PerEvent, true, true>(threshold, decay, s, c);
+    else cell_pass_stages<PerEvent, true, false>(threshold, decay, s, c);
   } else {
-    if (threshold && decay) cell_pass<PerEvent, false, true, true>(s, c);
-    else if (threshold) cell_pass<PerEvent, false, true, false>(s, c);
-    else cell_pass<PerEvent, false, false, true>(s, c);
+    if (order) cell_pass_stages<PerEvent, false, true>(threshold, decay, s, c);
+    else cell_pass_stages<PerEvent, false, false>(threshold, decay, s, c);
   }
 }
 
@@ -570,17 +586,43 @@ ALWAYS_INLINE void jumps_of(const int32_t* __restrict__ idx, int32_t k, float* _
   }
 }
 
+// Order (same_step_inhibition = "random_order"), cell i with inhibitory input in this step, before its inhibitory
+// jumps (the excitatory ones applied): whether its excitation alone passes the threshold test and its coin says the
+// excitation came first (cell.cell_step's fires_first, the same tests in the same order). Few cells get past the
+// first test (excitatory input in the same step), so this is scalar.
+template <bool PerEvent>
+inline void flag_fires_first(int64_t i, const CellArrays& s, const CellConstantsView& c) {
+  const int64_t n = s.n;
+  if ((s.in[i] == 0.0f && s.in[n + i] == 0.0f) || s.since[i] < c.n_ref[i]) return;
+  const float vm = std::min(std::max(c.rmp[i] + s.ampa[i] + s.nmda[i] + s.gprox[i] + s.gdist[i] + s.ahp[i], c.vm_min),
+                            c.vm_max);
+  const float thr = c.vth[i] + s.excess[i];
+  if (!(vm > thr) || !(vm <= c.vblock[i] || (PerEvent && c.rmp[i] + s.v[i] <= thr))) return;
+  if (hash32(s.lane_key[i] ^ s.order_s) >> 31) s.fires_first[i] = 1;
+}
+
 // Receptor R's jumps in this step: its cells with input listed, their jumps computed eight at a time, then the last
-// n % kLanes cells one at a time
-template <bool Seq, Receptor R>
+// n % kLanes cells one at a time. Order: the listed cells' fires_first flags first (at GABA-dist only the cells
+// without GABA-prox input, whose flags the GABA-prox pass set from the same V).
+template <bool Seq, bool PerEvent, bool Order, Receptor R>
 ALWAYS_INLINE void receptor_jumps(const CellArrays& s, const CellConstantsView& c) {
   const int64_t n = s.n;
   const int64_t full = n - n % simd::kLanes;
   const float* x = s.in + int64_t(R) * n;
   float* comp = component<R>(s);
-  jumps_of<Seq, R>(s.listed, cells_with_input<R>(x, full, s.listed), comp, s.v, x, c);
-  for (int64_t i = full; i < n; ++i)
-    if (x[i] != 0.0f) comp[i] = jumped<float, Seq, R>(comp[i], s.v[i], x[i], c.rmp[i], c);
+  const int32_t k = cells_with_input<R>(x, full, s.listed);
+  constexpr bool kCheck = Order && (R == kRecGabaProx || R == kRecGabaDist);
+  const float* prox = s.in + int64_t(kRecGabaProx) * n;
+  if constexpr (kCheck)
+    for (int32_t j = 0; j < k; ++j)
+      if (R == kRecGabaProx || prox[s.listed[j]] == 0.0f) flag_fires_first<PerEvent>(s.listed[j], s, c);
+  jumps_of<Seq, R>(s.listed, k, comp, s.v, x, c);
+  for (int64_t i = full; i < n; ++i) {
+    if (x[i] == 0.0f) continue;
+    if constexpr (kCheck)
+      if (R == kRecGabaProx || prox[i] == 0.0f) flag_fires_first<PerEvent>(i, s, c);
+    comp[i] = jumped<float, Seq, R>(comp[i], s.v[i], x[i], c.rmp[i], c);
+  }
 }
 
 // This step's jumps, once its input is complete. In the paper's network 3-8 % of the cells have input at a
@@ -589,15 +631,15 @@ ALWAYS_INLINE void receptor_jumps(const CellArrays& s, const CellConstantsView& 
 // jumps, whose transcendental functions are most of the cost, computed eight listed cells at a time. Every cell
 // takes exactly the operations of the one-cell form, so the bits are those of computing every jump densely (the
 // receptors' components are independent: their order does not matter).
-template <bool Seq>
+template <bool Seq, bool PerEvent, bool Order>
 void jumps(const CellArrays& arrays, const CellConstantsView& consts) {
   const CellArrays s = arrays;
   const CellConstantsView c = consts;
   PROF_COUNT(cell_blocks, s.n / simd::kLanes)
-  receptor_jumps<Seq, kRecAmpa>(s, c);
-  receptor_jumps<Seq, kRecNmda>(s, c);
-  receptor_jumps<Seq, kRecGabaProx>(s, c);
-  receptor_jumps<Seq, kRecGabaDist>(s, c);
+  receptor_jumps<Seq, PerEvent, Order, kRecAmpa>(s, c);
+  receptor_jumps<Seq, PerEvent, Order, kRecNmda>(s, c);
+  receptor_jumps<Seq, PerEvent, Order, kRecGabaProx>(s, c);
+  receptor_jumps<Seq, PerEvent, Order, kRecGabaDist>(s, c);
 }
 
 template <bool PerEvent>
@@ -730,6 +772,8 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
   std::vector<uint8_t> spk_buf(n + 8, 0);
   std::vector<float> v_buf(n);
   std::vector<int32_t> listed_buf(n + simd::kLanes);
+  std::vector<int32_t> first_buf(n, 0);   // fires_first (random_order)
+  const bool order = a.random_order != 0;
   std::vector<int32_t> fired;
   fired.reserve(n);
   const CellConstantsView cc{rmp,      vth,      vblock,       ahpwt,    post_excess, d_ampa,  d_nmda,
@@ -765,9 +809,9 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
       for (int64_t b = 0; b < int64_t(sizeof(float)) * width; b += 64) __builtin_prefetch(next + b, 1, 3);
     }
     // 2c. the threshold test of step t - 1 and its spikes' effects on the cells; the decay and V of step t
-    cell_pass<PerEvent>(a.on_event != 0, last_step, this_step,
+    cell_pass<PerEvent>(a.on_event != 0, order, last_step, this_step,
                         CellArrays{ampa, nmda, gprox, gdist, ahp, excess, since, prev_inb, v_buf.data(),
-                                   listed_buf.data(), sb, n},
+                                   listed_buf.data(), sb, n, first_buf.data(), lane_key, 0},
                         cc);
     PROF_MARK(kCells)
     if (last_step) {   // 2d-g. the spikes of step t - 1
@@ -857,13 +901,15 @@ void run_network(const std::vector<View>& in, const std::vector<View>& out, cons
     if (!this_step) break;
     // 2b. noise counts N = #{k : u >= T_k}, added as count x weight to the AMPA, GABA-prox, GABA-dist inputs (after
     // the last step's delivery, which may land in this step's slot: the same order of additions as the XLA path)
-    add_noise(n, kmax, hash32(uint32_t(m) * kGolden + step_seed), lane_key, thr, noise_w, events_left, limited, inb,
-              ub, noise_blocks.data());
+    const uint32_t step_hash = hash32(uint32_t(m) * kGolden + step_seed);
+    add_noise(n, kmax, step_hash, lane_key, thr, noise_w, events_left, limited, inb, ub, noise_blocks.data());
     PROF_MARK(kNoise)
     // 2c. this step's jumps
-    const CellArrays cells{ampa, nmda, gprox, gdist, ahp, excess, since, inb, v_buf.data(), listed_buf.data(), sb, n};
-    if (seq) jumps<true>(cells, cc);
-    else jumps<false>(cells, cc);
+    const CellArrays cells{ampa, nmda,       gprox,   gdist, ahp, excess,           since,   inb,
+                           v_buf.data(),     listed_buf.data(), sb, n, first_buf.data(), lane_key,
+                           step_hash ^ kOrderSalt};
+    if (seq) order ? jumps<true, PerEvent, true>(cells, cc) : jumps<true, PerEvent, false>(cells, cc);
+    else order ? jumps<false, PerEvent, true>(cells, cc) : jumps<false, PerEvent, false>(cells, cc);
     PROF_MARK(kCells)
     prev_inb = inb;
   }
@@ -882,7 +928,7 @@ View view_of(const ffi::AnyBuffer& b, int base_rank, int batch_rank) {
 }
 
 ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n_steps, int64_t n_slots,
-                     int64_t sequential, int64_t on_event, int64_t per_event, float dt_ms,
+                     int64_t sequential, int64_t on_event, int64_t per_event, int64_t random_order, float dt_ms,
                      ffi::Span<const int64_t> excitatory, int64_t n_threads, float e_ampa_mv, float e_nmda_mv,
                      float e_gaba_mv, float mg_mm, float mg0_mm, float mg_slope_per_mv, float vm_min_mv,
                      float vm_max_mv, float max_jump_fraction, int64_t delay_bits) {
@@ -912,7 +958,7 @@ ffi::Error ChunkImpl(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t n
     if (r.has_error()) return r.error();
     out[k] = view_of(**r, kBaseRankOut[k], batch_rank);
   }
-  Attrs a{n_steps,   n_slots,   n_groups, sequential, on_event,        per_event, {0},
+  Attrs a{n_steps,   n_slots,   n_groups, sequential, on_event,        per_event, random_order, {0},
           dt_ms,     e_ampa_mv, e_nmda_mv,    e_gaba_mv, mg_mm,     mg0_mm,   mg_slope_per_mv, vm_min_mv,
           vm_max_mv, max_jump_fraction, delay_bits};
   for (int64_t g = 0; g < n_groups; ++g) a.exc[g] = excitatory[g];
@@ -969,6 +1015,7 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxarmNetworkChunk, ChunkImpl,
                                   .Attr<int64_t>("sequential")
                                   .Attr<int64_t>("on_event")
                                   .Attr<int64_t>("per_event")
+                                  .Attr<int64_t>("random_order")
                                   .Attr<float>("dt_ms")
                                   .Attr<ffi::Span<const int64_t>>("excitatory")
                                   .Attr<int64_t>("n_threads")
