@@ -23,6 +23,11 @@ HERE = Path(__file__).resolve().parent
 SETTINGS = (("0.25", "end_of_step"), ("0.25", "random_order"), ("0.5", "end_of_step"), ("0.5", "random_order"))
 
 
+def label(dt: str, rule: str) -> str:
+    """A setting's key in the result file, without dots (the docs' placeholders split paths at dots)."""
+    return f"{round(float(dt) * 1000)} us {rule}"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--networks", default="1,64", help="comma-separated network counts")
@@ -32,7 +37,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     counts = [int(x) for x in args.networks.split(",")]
     t0 = time.perf_counter()
-    runs: dict[str, dict[str, list[float]]] = {f"{dt} {rule}": {str(n): [] for n in counts} for dt, rule in SETTINGS}
+    runs: dict[str, dict[str, list[float]]] = {label(dt, rule): {str(n): [] for n in counts} for dt, rule in SETTINGS}
     for r in range(args.rounds):
         for dt, rule in SETTINGS:
             for n in counts:
@@ -40,10 +45,10 @@ def main(argv=None) -> int:
                        "--dt", dt, "--same-step-inhibition", rule, "--threads", "1"]
                 out = json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True)
                                  .stdout.strip().splitlines()[-1])
-                runs[f"{dt} {rule}"][str(n)].append(out["network_s_per_s"])
+                runs[label(dt, rule)][str(n)].append(out["network_s_per_s"])
                 print(f"round {r}: dt {dt} ms, {rule:12s}, {n:3d} networks: {out['network_s_per_s']:7.1f} "
                       "network-s/s", flush=True)
-    default = f"{SETTINGS[0][0]} {SETTINGS[0][1]}"
+    default = label(*SETTINGS[0])
     median = {k: {n: float(np.median(v)) for n, v in per.items()} for k, per in runs.items()}
     result = {
         "command": "python benchmarks/clock_step.py " + " ".join(argv if argv is not None else sys.argv[1:]),
