@@ -442,6 +442,9 @@ def test_main(argv: list[str] | None = None) -> int:
                     help="test with this threshold test (default: as trained); the trained weights are kept")
     ap.add_argument("--crossing", choices=CROSSINGS, default=None,
                     help="test with this crossing rule (default: as trained); the trained weights are kept")
+    ap.add_argument("--same-step-inhibition", choices=SAME_STEP_INHIBITION, default=None,
+                    help="test with this rule for a step's excitation and inhibition (default: as trained); the "
+                         "trained weights are kept")
     ap.add_argument("--fresh-noise", type=int, default=None, metavar="J",
                     help="test with fresh background-noise streams (each network's noise key folded with J >= 0) "
                          "instead of the streams it trained with, which the test re-uses by default as the original "
@@ -482,9 +485,10 @@ def test_main(argv: list[str] | None = None) -> int:
     task = entry.Config.from_identity(identity or meta, test_duration_s=args.test_s or 1.0,
                                       test_em_noise_events=args.test_em_noise_events)
     tc = task.task_config()
-    # the threshold test changes neither the wiring nor the state layout, so trained networks can be tested either way
-    network = network_config(meta | ({"threshold_test": args.threshold_test} if args.threshold_test else {})
-                             | ({"crossing": args.crossing} if args.crossing else {}))
+    # the threshold rules change neither the wiring nor the state layout, so trained networks can be tested either way
+    network = network_config(meta | {k: v for k, v in (("threshold_test", args.threshold_test),
+                                                       ("crossing", args.crossing),
+                                                       ("same_step_inhibition", args.same_step_inhibition)) if v})
     learning, rule = rule_from_meta(meta)   # the rule's carry is restored with the gains (gradient: Adam's state)
     cfg = LoopConfig(arm=meta["arm"], backend=meta["backend"], network=network, task=tc, learning=learning,
                      rule=rule)

@@ -349,6 +349,10 @@ def test_train_cli_network_options_are_recorded_and_kept_by_test(tmp_path):
                  "--out", str(tmp_path / "t3")]) == 0
     assert json.loads((tmp_path / "t3" / "results.json").read_text())["config"]["loop"]["network"]["crossing"] == \
         "per_event"
+    assert main(["test", "--from", str(out), "--test-s", "0.2", "--same-step-inhibition", "random_order",
+                 "--out", str(tmp_path / "t4")]) == 0
+    assert json.loads((tmp_path / "t4" / "results.json").read_text())["config"]["loop"]["network"][
+        "same_step_inhibition"] == "random_order"
     paths = []
     for j in (0, 0, 1):
         assert main(["test", "--from", str(out), "--test-s", "0.2", "--fresh-noise", str(j),
