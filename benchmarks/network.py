@@ -129,6 +129,9 @@ def run_brian2(dt_ms: float | None, seconds: float, repeats: int, seed: int, jax
 
 
 def main(argv=None) -> int:
+    sys.path.insert(0, REPO)
+    from jaxarm.config.network import SAME_STEP_INHIBITION
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--networks", default="1,60,300", help="comma-separated network counts")
     ap.add_argument("--dt", type=float, default=None, help="clock step, ms (default: NetworkConfig's)")
@@ -148,7 +151,7 @@ def main(argv=None) -> int:
     ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                     help="networks stepped together, groups one after the other (default: the commands' default on "
                          "this backend, 8 on a CPU; 0: one vmap of all)")
-    ap.add_argument("--same-step-inhibition", choices=["end_of_step", "random_order"], default=None,
+    ap.add_argument("--same-step-inhibition", choices=SAME_STEP_INHIBITION, default=None,
                     help="NetworkConfig.same_step_inhibition (default: NetworkConfig's)")
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)

@@ -37,6 +37,7 @@ import sys
 from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.analysis.reach import reach_metrics
 from jaxarm.arm.registry import ARMS, BACKENDS
+from jaxarm.config.network import SAME_STEP_INHIBITION
 from jaxarm.config.validate import ConfigError
 from jaxarm.learning.metaparams import MetaParams
 from jaxarm.learning.registry import DEFAULT, RULES, rule_from_meta
@@ -214,7 +215,6 @@ CROSSING_HELP = ("a step whose input lifts a cell from below threshold past Vblo
                  "every event; NetworkConfig.crossing)")
 
 
-SAME_STEP_INHIBITION = ("end_of_step", "random_order")
 SAME_STEP_INHIBITION_HELP = ("a step whose excitation lifts a cell past threshold and whose inhibition brings it back: "
                              "end_of_step (default; no spike) or random_order (fires where a coin per cell and step "
                              "says the excitation came first, as the event-driven original would; halves what a "

@@ -26,6 +26,10 @@ def _is_multiple(x: float, step: float) -> bool:
     return n >= 1 and abs(n * step - x) <= 1e-9 * max(1.0, x)
 
 
+#: The rules of NetworkConfig.same_step_inhibition, the default first.
+SAME_STEP_INHIBITION = ("end_of_step", "random_order")
+
+
 @dataclass(frozen=True)
 class NetworkConfig:
     """Static structure of one network.
@@ -198,7 +202,7 @@ class NetworkConfig:
         check_choice(self, "event_summation", ("sequential", "linear"))
         check_choice(self, "threshold_test", ("every_step", "on_event"))
         check_choice(self, "crossing", ("after_step", "per_event"))
-        check_choice(self, "same_step_inhibition", ("end_of_step", "random_order"))
+        check_choice(self, "same_step_inhibition", SAME_STEP_INHIBITION)
         if not isinstance(self.plasticity_bookkeeping, bool):
             raise ConfigError(f"NetworkConfig.plasticity_bookkeeping = {self.plasticity_bookkeeping!r}: "
                               "must be True or False")

@@ -41,7 +41,7 @@ import numpy as np
 
 from jaxarm import parallel, parallel_cli, runfolder
 from jaxarm.arm.registry import ARMS, BACKENDS
-from jaxarm.config.network import RUNTIME_FIELDS
+from jaxarm.config.network import RUNTIME_FIELDS, SAME_STEP_INHIBITION
 from jaxarm.config.validate import ConfigError
 from jaxarm.paper import presets as preset_lib
 from jaxarm.task.registry import DEFAULT as TASK_DEFAULT, TASKS
@@ -500,7 +500,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt-ms", type=float, default=None,
                     help="network clock step, ms (default 0.25, what every preset was searched with; e.g. 0.1 to "
                          "check that a count does not depend on the step)")
-    from jaxarm.experiment import SAME_STEP_INHIBITION, SAME_STEP_INHIBITION_HELP
+    from jaxarm.experiment import SAME_STEP_INHIBITION_HELP
     ap.add_argument("--same-step-inhibition", choices=SAME_STEP_INHIBITION, default=None,
                     help=SAME_STEP_INHIBITION_HELP + "; every preset was searched with end_of_step")
     add_network_arguments(ap, "; every preset was searched on the paper's network")
