@@ -108,15 +108,17 @@ def test_positive_control_xla_dot_of_the_muscle_paths_depends_on_the_batch(input
 
 @pytest.mark.slow
 def test_closed_loop_training_gives_the_same_bits_alone_in_a_batch_and_in_groups():
-    """Musculoskeletal arm, authors' metaparameters, 0.5 s of training with babbling and R-STDP, through ``lax.map``
-    as a CPU device runs its share (``jaxarm.parallel.map_networks``): networks 0-6 in one group of 7, network 5
-    alone, and the 7 in groups of 2 (a last group of 1)."""
+    """Musculoskeletal arm, authors' metaparameters, 5.5 s of training with babbling and R-STDP (critic updates and
+    the synaptic scaling at 5 s included), through ``lax.map`` as a CPU device runs its share
+    (``jaxarm.parallel.map_networks``): networks 0-6 in one group of 7, network 5 alone, and the 7 in groups of 2 (a
+    last group of 1). Before ``rows_dot`` and the soft bound's reciprocal (2026-12-07) a network alone parted from
+    the group at the first critic update that its division rounded otherwise, and at the scaling."""
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.task.config import TaskConfig
     from jaxarm.train import make_train
 
-    fns = make_train(LoopConfig(arm="musculoskeletal", task=TaskConfig(epochs=1, epoch_duration_s=0.5)))
+    fns = make_train(LoopConfig(arm="musculoskeletal", task=TaskConfig(epochs=1, epoch_duration_s=5.5)))
     mp = MetaParams.original()
     carry = jax.jit(jax.vmap(fns.init))(jax.random.split(jax.random.PRNGKey(0), 7))
 
@@ -131,3 +133,58 @@ def test_closed_loop_training_gives_the_same_bits_alone_in_a_batch_and_in_groups
     for whole, one, grouped in zip(together, alone, in_twos):
         np.testing.assert_array_equal(np.asarray(one), np.asarray(whole)[5:6])
         np.testing.assert_array_equal(np.asarray(grouped), np.asarray(whole))
+
+
+def test_rows_dot_gives_the_same_bits_in_every_batch():
+    """jaxarm.cpu_arithmetic.rows_dot (synaptic scaling's weighted total over every synapse): each row's product in
+    batches of 1, 2, 7 and 9, nested vmaps, lax.map's groups of 1 and 3 and unbatched equals the row's in one batch of
+    8; XLA's own product of a batch of one as the positive control (it differs in some rows on this machine)."""
+    from jaxarm.cpu_arithmetic import rows_dot
+
+    rng = np.random.default_rng(0)
+    n = 50_664
+    v = rng.uniform(0.0, 3.0, n).astype(np.float32)
+    x = jnp.asarray(rng.uniform(0.5, 2.0, (8, n)).astype(np.float32))
+    in_eight = np.asarray(jax.jit(jax.vmap(lambda r: jnp.dot(v, r)))(x))
+    ours = jax.jit(jax.vmap(lambda r: rows_dot(v, r)))
+    np.testing.assert_array_equal(np.asarray(ours(x)), in_eight)
+    for b in (1, 2, 7):
+        got = np.concatenate([np.asarray(ours(x[i:i + b])) for i in range(0, 8, b)])[:8]
+        np.testing.assert_array_equal(got, in_eight)
+    np.testing.assert_array_equal(np.asarray(ours(jnp.concatenate([x, x[:1]]))), np.append(in_eight, in_eight[0]))
+    nested = jax.jit(jax.vmap(jax.vmap(lambda r: rows_dot(v, r))))(x.reshape(4, 2, n))
+    np.testing.assert_array_equal(np.asarray(nested).reshape(-1), in_eight)
+    for k in (1, 3):
+        mapped = jax.jit(lambda x, k=k: jax.lax.map(lambda r: rows_dot(v, r), x, batch_size=k))(x)
+        np.testing.assert_array_equal(np.asarray(mapped), in_eight)
+    assert np.asarray(jax.jit(lambda r: rows_dot(v, r))(x[3])) == in_eight[3]
+    alone = np.array([np.asarray(jax.jit(lambda r: jnp.dot(v, r))(x[i])) for i in range(8)])
+    assert (alone != in_eight).any(), "positive control: XLA's product of one row rounds as in a batch of 8 here"
+
+
+def test_the_critic_update_gives_the_same_bits_alone_and_in_a_batch():
+    """One R-STDP critic update (jaxarm.learning.stdp.dopamine_update through batching.when_any, as the rule runs it)
+    of one network alone equals its row in a batch of 8, for a reward and a punishment."""
+    from jaxarm.batching import when_any
+    from jaxarm.learning import stdp
+
+    rng = np.random.default_rng(1)
+    n = 29_672
+    is_ee = rng.uniform(size=n) < 0.6
+    w = jnp.asarray(rng.uniform(0.2, 3.0, (8, n)).astype(np.float32))
+    tags = jnp.asarray(np.where(rng.uniform(size=(8, n)) < 0.3, 4990.0, -1e9).astype(np.float32))
+    bounds = (jnp.float32(3.2167358), jnp.float32(9.108501), jnp.float32(0.08971194))
+
+    def update(w, tags, signal, bounds):
+        def reinforce(x, aux):
+            (w, tags), ((ee, ei, rate), signal) = x, aux
+            return stdp.dopamine_update(w, tags, True, jnp.where(is_ee, ee, ei), rate, 5000.0, signal, 10.0)
+
+        return when_any(signal != 0, reinforce, (w, tags), (bounds, signal))[0]
+
+    batched = jax.jit(jax.vmap(update, in_axes=(0, 0, 0, None)))
+    alone = jax.jit(update)
+    for signal in (1.0, -1.0):
+        together = np.asarray(batched(w, tags, jnp.full(8, signal, jnp.float32), bounds))
+        for i in range(8):
+            np.testing.assert_array_equal(np.asarray(alone(w[i], tags[i], jnp.float32(signal), bounds)), together[i])

@@ -24,6 +24,7 @@ import numpy as np
 
 from jaxarm.batching import when_any
 from jaxarm.config.validate import ConfigError
+from jaxarm.cpu_arithmetic import rows_dot
 from jaxarm.learning import babbling as bab
 from jaxarm.learning import critic as crit
 from jaxarm.learning import stdp
@@ -105,7 +106,7 @@ class RSTDP(LearningRule):
         bookkeeping only excludes cells whose outgoing gains are all exactly 0, which soft-bounded multiplicative
         updates never reach."""
         base, s0 = self.scaling_tables
-        factor = s0 / jnp.maximum(jnp.dot(base, wgain), 1e-12)
+        factor = s0 / jnp.maximum(rows_dot(base, wgain), 1e-12)   # the same bits in any batch
         return jnp.where((base > 0) & (factor < 1.0), wgain * factor, wgain)  # P->ES inputs are not INTF6 synapses
 
     def _set_em_rates(self, noise, rates_hz):

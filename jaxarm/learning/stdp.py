@@ -99,7 +99,10 @@ def dopamine_update(wgain, pdope, plastic, maxw, inc, t_ms, signal, max_elig_tr_
     live = eligible(pdope, plastic, t_ms, max_elig_tr_dur_ms) & (signal != 0)
     potentiate = signal > 0
     if config.soft_bounds:
-        step = jnp.where(potentiate, inc * (1.0 - wgain / maxw), -inc * (wgain / maxw))
+        # wgain / maxw as a product with the reciprocal: XLA:CPU rewrites a division by a bound shared across a
+        # batch's networks so, and kept the division for a network alone (other bits in 5 % of the updated gains)
+        fraction = wgain * (1.0 / maxw)
+        step = jnp.where(potentiate, inc * (1.0 - fraction), -inc * fraction)
     else:
         step = jnp.where(potentiate, inc, -inc) * jnp.ones_like(wgain)
     if config.exponential:
