@@ -9,7 +9,7 @@ Each network size runs in its own process (so peak RSS is that size's, and compi
 drive is the training drive of experiments/network_rates.py (simple arm in closed loop, motor babbling, no
 plasticity), with plasticity bookkeeping (tags on every postsynaptic spike) on; every network has its own wiring and
 noise. The networks run in groups of ``--networks-at-once`` one after the other, as the commands run them on one
-device (default: theirs, 8 on a CPU; 0: one vmap of all). The networks first run ``--warmup`` simulated seconds
+device (default: theirs, 1 on a CPU since 2026-12-07, 8 before; 0: one vmap of all). The networks first run ``--warmup`` simulated seconds
 (untimed: the start of every run is a synchronous transient — all P cells fire at 1 ms — that costs extra
 spike-list passes; it is timed separately as ``transient_network_s_per_s``), then timed runs continue from there.
 Throughput = networks x simulated seconds / wall seconds of the compiled run (median over repeats), compile
@@ -150,7 +150,7 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="NetworkConfig.native_threads")
     ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                     help="networks stepped together, groups one after the other (default: the commands' default on "
-                         "this backend, 8 on a CPU; 0: one vmap of all)")
+                         "this backend, 1 on a CPU; 0: one vmap of all)")
     ap.add_argument("--same-step-inhibition", choices=SAME_STEP_INHIBITION, default=None,
                     help="NetworkConfig.same_step_inhibition (default: NetworkConfig's)")
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)

@@ -7,7 +7,7 @@
 The process pins itself to one CPU and the native kernel to one thread. For each arm and network count it times,
 as medians of ``--repeats`` compiled runs of ``--seconds`` simulated seconds (one per network count), starting
 from the training state of networks 0..N-1 (the authors' metaparameters, babbling on), in groups of
-``--networks-at-once`` one after the other as the commands run them (default 8 on a CPU; 0: one vmap of all):
+``--networks-at-once`` one after the other as the commands run them (default 1 on a CPU since 2026-12-07, 8 before; 0: one vmap of all):
 
 * ``train``: the closed loop as training runs it (network, readout, arm, critic, R-STDP, babbling, scaling);
 * ``test``: the same loop without learning; ``learning`` = train - test;
@@ -201,7 +201,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                     help="networks stepped together, groups one after the other (default: the commands' default on "
-                         "this backend, 8 on a CPU; 0: one vmap of all)")
+                         "this backend, 1 on a CPU; 0: one vmap of all)")
     ap.add_argument("--json-out", default=None)
     ap.add_argument("--table-from", default=None, metavar="JSON",
                     help="print the table of a saved result file (e.g. docs/results/profile.json) and exit")

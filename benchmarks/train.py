@@ -4,7 +4,7 @@
 
 Each measurement compiles one training epoch of ``--seconds`` simulated seconds (original metaparameters, babbling,
 R-STDP on) over ``--networks`` networks (keys 0..N-1), in groups of ``--networks-at-once`` one after the other as
-the commands run them on one device (default: theirs, 8 on a CPU; 0: one vmap of all), runs it ``--repeats`` times
+the commands run them on one device (default: theirs, 1 on a CPU since 2026-12-07, 8 before; 0: one vmap of all), runs it ``--repeats`` times
 and reports the median.
 With ``--record-s S`` the epoch records every cell's spikes over its last S seconds (``jaxarm.record``,
 ``jaxarm train --record-train-s``): the cost of recording. Prints JSON: {"network_s_per_s": {"60": ...}, "compile_s": {...}, "config": {...}}.
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
                     help="NetworkConfig.native_threads (default: $JAXARM_NATIVE_THREADS, else 1)")
     ap.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                     help="networks stepped together, groups one after the other (default: the commands' default on "
-                         "this backend, 8 on a CPU; 0: one vmap of all)")
+                         "this backend, 1 on a CPU; 0: one vmap of all)")
     ap.add_argument("--record-s", type=float, default=0.0,
                     help="record every cell's spikes over the epoch's last S seconds (default 0: no recording)")
     args = ap.parse_args(argv)

@@ -19,11 +19,11 @@ Set-up, once per process and before JAX computes anything (:func:`start`; the co
   the others within ``--coordinator-timeout`` (default 60 s) says so in one line naming the address and exits. Process 0 writes the outputs;
   checkpoints are orbax multi-process checkpoints on a file system all processes share.
 
-Each device runs its share in groups of :func:`networks_at_once` networks (8 on CPUs), one group after the other, and
-a batch is padded to whole groups on every device (:func:`padded_size`): the extra members are computed and dropped
-by the caller, never counted. With XLA's fused multiply-add off and the arm's small products summed in a fixed order
-(:mod:`jaxarm.cpu_arithmetic`), a network gets the same bits at any place in its group and in a group of any size
-(docs/scaling.md, "A network in another batch").
+Each device runs its share in groups of :func:`networks_at_once` networks (on CPUs one network at a time), one
+group after the other, and a batch is padded to whole groups on every device (:func:`padded_size`): the extra members
+are computed and dropped by the caller, never counted. With XLA's fused multiply-add off and the arm's small products
+and the learning rule's long sums computed as in any batch (:mod:`jaxarm.cpu_arithmetic`), a network gets the same
+bits at any place in its group and in a group of any size (docs/scaling.md, "A network in another batch").
 """
 from __future__ import annotations
 
@@ -162,10 +162,11 @@ def _relax_collective_waits() -> None:
 _started = False
 
 
-#: Networks a CPU device steps together by default. A device's share is run in groups of this many, one group after
-#: the other (``lax.map``): measured 1.18-1.30x faster than the whole share at once (docs/scaling.md; presumably a
-#: group's wiring stays in the CPU's caches through an epoch), and the same program on every layout.
-CPU_NETWORKS_AT_ONCE = 8
+#: Networks a CPU device steps together by default: one, the share's networks one after the other (``lax.map``).
+#: A network's ring buffer and wiring (about 2 MB) then stay in the core's caches through its epoch; in groups of 8
+#: they leave them at every 10 ms exchange, and ``jaxarm train`` trained 1.2x (simple arm) and 1.1x
+#: (musculoskeletal) slower (docs/scaling.md, docs/results/group_size.json). No padding beyond the device count.
+CPU_NETWORKS_AT_ONCE = 1
 _networks_at_once: int | None = None
 
 
@@ -352,7 +353,7 @@ def padding_note(n: int, what: str, devices: int, at_once: int, processes: int =
     padded = -(-n // span) * span
     where = f"on {devices} device{'s' if devices != 1 else ''}"
     where += f" of {processes} processes" if processes > 1 else ""
-    where += f" in groups of {at_once}" if at_once else ""
+    where += (" one network at a time" if at_once == 1 else f" in groups of {at_once}") if at_once else ""
     if padded == n:
         return f"{what}: {where}, whole groups (no padding)"
     text = (f"{what}: {where}, padded to {padded}: {100 * (padded - n) / padded:.3g} % of what runs is padding "

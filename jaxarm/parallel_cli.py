@@ -19,7 +19,7 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
                         f"{usable_cores()} here); accelerators: all of them are used")
     g.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                    help=f"networks each device steps together, the rest of its share after them (default: "
-                        f"{CPU_NETWORKS_AT_ONCE} on CPUs, where a small group stays in the caches; all on accelerators; "
+                        f"{CPU_NETWORKS_AT_ONCE} on CPUs, where one network stays in the caches; all on accelerators; "
                         "0 = all); every value gives the same bits")
     g.add_argument("--coordinator", default=None, metavar="HOST:PORT",
                    help="several processes (machines): process 0's address; give every process the same command with "

@@ -140,7 +140,7 @@ def test_the_command_line_trains_and_tests_the_eight_targets(tmp_path):
 
 @pytest.mark.slow   # compiles a centre-out training and test for two batch sizes
 def test_networks_train_to_the_same_bits_in_a_batch_of_three_and_of_ten():
-    """The batch runs through jaxarm.parallel.sharded_map (groups of 8 networks on every device, padded): keys 0-2
+    """The batch runs through jaxarm.parallel.sharded_map (one network at a time on every device, padded): keys 0-2
     trained as a batch of 3 and as the first 3 of 10 give the same test paths and successes (a plain vmap over 3
     and over 10 networks compiles different code, which may round differently in the last bit)."""
     from jaxarm.run_centre_out import train_and_test

@@ -1,5 +1,6 @@
 """Layout-independent results: one device, two devices, two processes on 127.0.0.1 give the same bits, and a batch
 padded to the device count never reports its padding."""
+import contextlib
 import json
 import os
 import socket
@@ -17,6 +18,24 @@ from jaxarm.loop import LoopConfig
 from jaxarm.task.config import TaskConfig
 
 TINY = LoopConfig(arm="simple", task=TaskConfig(epochs=2, epoch_duration_s=0.3, test_duration_s=0.2))
+
+
+@contextlib.contextmanager
+def parallel_groups(at_once: int):
+    """The process's --networks-at-once set to ``at_once`` for the block (jaxarm.parallel.networks_at_once)."""
+    from jaxarm import parallel
+
+    before, parallel._networks_at_once = parallel._networks_at_once, at_once
+    try:
+        yield
+    finally:
+        parallel._networks_at_once = before
+
+
+def _docs_text(page: str) -> str:
+    from pathlib import Path
+
+    return (Path(__file__).resolve().parents[1] / "docs" / page).read_text()
 
 
 def one_device_mesh():
@@ -55,7 +74,7 @@ def test_an_odd_batch_padded_over_two_devices_equals_one_device(tmp_path):
     results = {}
     for name, mesh in (("two", None), ("one", one_device_mesh())):
         run = Run(TINY, 3, 5, tmp_path / name, mp, mesh=mesh)
-        assert run.n_padded == (16 if name == "two" else 8)     # whole groups of 8 on every device
+        assert run.n_padded == (4 if name == "two" else 3)     # one network at a time: padded to the devices
         carry, history, *_ = run.train(progress=False)
         trained, naive = run.test(carry.trained), run.test(run.naive())
         assert trained.hand_m.shape[0] == 3 and history.rewards.shape == (2, 3)
@@ -115,9 +134,10 @@ def test_networks_is_not_read_as_networks_at_once(monkeypatch):
 
 @pytest.mark.slow
 def test_a_batch_of_30_trains_to_the_same_bits_on_one_and_two_devices():
-    """30 networks, 15 s of training: on one device (30 at once before the fix) and on two (15 each) network 14
-    drifted apart (XLA's CPU code for a batch that is not a multiple of 8 rounds differently in the last bit); in
-    groups of 8 on every device every state array is the same."""
+    """30 networks, 15 s of training (critic updates, the scaling at 5 and 10 s): on one device (30 at once before
+    the fix) and on two (15 each) network 14 drifted apart (XLA's CPU code for a batch that is not a multiple of 8
+    rounded the learning rule's updates differently in the last bit, jaxarm.cpu_arithmetic); one network at a time
+    (the default since 2026-12-07) on one device and on two, every state array is the same."""
     from jaxarm.run import Run
 
     config = LoopConfig(arm="simple", task=TaskConfig(epochs=1, epoch_duration_s=15.0, test_duration_s=0.2))
@@ -277,8 +297,9 @@ print(jax.jit(jax.shard_map(share, mesh=parallel.mesh(), in_specs=P(parallel.AXI
 def test_a_padded_batch_says_how_much_is_padding_and_what_fills_it():
     """A search's generation and a reproduction's batch that do not fill whole groups on their mesh say so in one
     line: the padded size, the fraction that is padding, and the --population / --networks that fills the groups;
-    one that fills them says so too. The docs' SLURM recipe (8 nodes x 32 cores, 256 devices in groups of 8): 256
-    candidates x 2 seeds padded 75 %, 1024 x 2 whole."""
+    one that fills them says so too. The docs' SLURM recipe (8 nodes x 32 cores, 256 devices one network at a time):
+    100 candidates x 2 seeds padded 21.9 % (the line the docs print), 1024 x 2 whole; in groups of 8, 256 x 2
+    padded 75 %."""
     from types import SimpleNamespace
 
     from jaxarm import parallel
@@ -291,17 +312,27 @@ def test_a_padded_batch_says_how_much_is_padding_and_what_fills_it():
         return generation_layout(EvolveConfig(population_size=population, seeds_per_candidate=seeds), mesh)
 
     two, one = parallel.mesh(), one_device_mesh()
-    assert search(5, 2, two) == ("a generation's 10 evaluations (5 candidates x 2 seed(s)): on 2 devices in groups "
-                                 "of 8, padded to 16: 37.5 % of what runs is padding (computed and dropped); "
-                                 "--population 8 fills the groups (16 evaluations)")
-    assert search(8, 2, two).endswith("on 2 devices in groups of 8, whole groups (no padding)")
-    assert search(4, 2, one).endswith("on 1 device in groups of 8, whole groups (no padding)")
-    assert search(3, 3, one).endswith("padded to 16: 43.8 % of what runs is padding (computed and dropped); "
-                                      "--population 8 fills the groups (24 evaluations)")
+    assert search(5, 1, two) == ("a generation's 5 evaluations (5 candidates x 1 seed(s)): on 2 devices one network "
+                                 "at a time, padded to 6: 16.7 % of what runs is padding (computed and dropped); "
+                                 "--population 6 fills the groups (6 evaluations)")
+    assert search(5, 2, two).endswith("on 2 devices one network at a time, whole groups (no padding)")
+    assert search(3, 3, one).endswith("on 1 device one network at a time, whole groups (no padding)")
+    with parallel_groups(8):
+        assert search(5, 2, two) == ("a generation's 10 evaluations (5 candidates x 2 seed(s)): on 2 devices in "
+                                     "groups of 8, padded to 16: 37.5 % of what runs is padding (computed and "
+                                     "dropped); --population 8 fills the groups (16 evaluations)")
+        assert search(8, 2, two).endswith("on 2 devices in groups of 8, whole groups (no padding)")
+        assert search(3, 3, one).endswith("padded to 16: 43.8 % of what runs is padding (computed and dropped); "
+                                          "--population 8 fills the groups (24 evaluations)")
     recipe = parallel.padding_note(512, "g", 256, 8, 8, ("--population", lambda p: 2 * p, 256))
     assert recipe == ("g: on 256 devices of 8 processes in groups of 8, padded to 2048: 75 % of what runs is padding "
                       "(computed and dropped); --population 1024 fills the groups (2048 networks)")
     assert parallel.padding_note(2048, "g", 256, 8, 8).endswith("whole groups (no padding)")
+    # the recipe as the docs print it (one network at a time), with --population 100
+    what = "jaxarm evolve: a generation's 200 evaluations (100 candidates x 2 seed(s))"
+    printed = parallel.padding_note(200, what, 256, 1, 8, ("--population", lambda p: 2 * p, 100), unit="evaluations")
+    assert printed in _docs_text("scaling.md")
+    assert parallel.padding_note(2048, "g", 256, 1, 8).endswith("whole groups (no padding)")
     assert parallel.padding_note(10, "g", 4, 0) == "g: on 4 devices, padded to 12: 16.7 % of what runs is padding " \
                                                   "(computed and dropped); a batch of 12 networks (a multiple of 4) " \
                                                   "fills the groups"

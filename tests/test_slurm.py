@@ -35,8 +35,9 @@ def test_the_docs_show_the_recipe_that_is_submitted():
 
 
 def test_the_recipes_numbers_fill_their_groups():
-    """Nodes x tasks per node x CPUs per task devices, 8 networks each at once (jaxarm.parallel.CPU_NETWORKS_AT_ONCE):
-    a generation's candidates x seeds is a whole number of such rounds, so nothing is padding."""
+    """Nodes x tasks per node x CPUs per task devices, jaxarm.parallel.CPU_NETWORKS_AT_ONCE networks each at once:
+    a generation's candidates x seeds is a whole number of such rounds, so nothing is padding; in the groups of 8
+    of `--networks-at-once 8` too."""
     from jaxarm import parallel
 
     text = RECIPE.read_text()
@@ -46,7 +47,9 @@ def test_the_recipes_numbers_fill_their_groups():
     devices = int(sbatch["nodes"]) * int(sbatch["ntasks-per-node"]) * int(sbatch["cpus-per-task"])
     evaluations = option("population") * option("seeds-per-candidate")
     assert evaluations % (devices * parallel.CPU_NETWORKS_AT_ONCE) == 0
-    assert parallel.padding_note(evaluations, "g", devices, parallel.CPU_NETWORKS_AT_ONCE).endswith("(no padding)")
+    for at_once in (parallel.CPU_NETWORKS_AT_ONCE, 8):
+        assert evaluations % (devices * at_once) == 0
+        assert parallel.padding_note(evaluations, "g", devices, at_once).endswith("(no padding)")
 
 
 def _fake_run(folder: Path, fitness: np.ndarray, meta: dict) -> None:
@@ -110,5 +113,5 @@ def test_the_recipe_under_a_real_slurm_gives_the_bits_of_one_process(tmp_path):
     record = json.loads(result.read_text())
     assert record["identical"] and record["slurm"]["job_status"] == 0
     assert any(k.startswith("checkpoint") and k.endswith("state") for k in record["comparison"])
-    # the job's processes met through SLURM's environment: 2 processes of 1 device, 8 x 2 filling their groups
-    assert "on 2 devices of 2 processes in groups of 8, whole groups" in record["slurm"]["log_text"]
+    # the job's processes met through SLURM's environment: 2 processes of 1 device, 8 x 2 evaluations, no padding
+    assert "on 2 devices of 2 processes one network at a time, whole groups" in record["slurm"]["log_text"]
