@@ -22,6 +22,11 @@ products are summed changes with the batch a ``vmap`` adds: the musculoskeletal 
 training parted with its group's size (``tests/test_batch_invariance.py``). :func:`ordered_dot` sums the products
 one after the other, in the contraction's order, as elementwise operations that round the same in every row.
 
+XLA:CPU also rewrites a division by a divisor that a ``vmap``'s rows share (a broadcast) into a product with the
+divisor's reciprocal, rounded twice, and keeps the division where the divisor differs per row or there is no
+batch: the critic update's soft bound gave a network other bits in a group of one than in a group of 8 with a
+metaparameter set shared by the group. :func:`divide` computes what a group of 8 computed, in any group.
+
 A long product (synaptic scaling's weighted total over 50,664 synapses) cannot be written out term by term.
 XLA:CPU's matrix-vector product gives every row the same bits in batches of 8, 16, 32 and 64 rows, at any place,
 but others in batches of 1, 2, 4 or 7 (``tests/test_batch_invariance.py``): :func:`rows_dot` pads a batch with zero
@@ -133,3 +138,56 @@ def _rows_product_vmap(axis_size, in_batched, v, rows):
     a, b, n = rows.shape
     # this level's rows and the rows below as one batch (an outer vmap level flattens it again)
     return _rows_product(v, rows.reshape(a * b, n)).reshape(a, b), True
+
+
+def divide(a, b):
+    """``a / b`` elementwise (broadcast together) as XLA:CPU computes it for a group of networks, in every batch: a division
+    (one rounding) where the divisor is each network's own (batched under ``vmap``), a product with the divisor's
+    reciprocal (two roundings) where the group's networks share it (unbatched under ``vmap``) or there is no batch.
+
+    XLA:CPU rewrites a division by a broadcast divisor into that product, so a group of 8 with a shared
+    metaparameter set computed the reciprocal's product and a group of one the division; this keeps what groups
+    of 8 computed, for any group (a division written as such, under a batch of per-network divisors, is
+    materialised behind an optimisation barrier so that no rewrite applies)."""
+    a, b = jnp.broadcast_arrays(jnp.asarray(a), jnp.asarray(b))
+    return _divide(a, b)
+
+
+@jax.custom_jvp
+def _divide(a, b):
+    return _divide_as_in_groups(a, b)
+
+
+@_divide.defjvp
+def _divide_jvp(primals, tangents):
+    (a, b), (da, db) = primals, tangents
+    q = _divide(a, b)
+    return q, (da - q * db) / b
+
+
+def _materialised(x, batched, axis_size):
+    return x if batched else jnp.broadcast_to(x, (axis_size,) + x.shape)
+
+
+@jax.custom_batching.custom_vmap
+def _divide_as_in_groups(a, b):
+    return a * (1.0 / b)      # no batch: as a group whose networks share the divisor
+
+
+@_divide_as_in_groups.def_vmap
+def _divide_as_in_groups_vmap(axis_size, in_batched, a, b):
+    a_batched, b_batched = in_batched
+    if not b_batched:        # shared by the rows: the reciprocal's product, as XLA computed it
+        return _materialised(a, a_batched, axis_size) * (1.0 / b), True
+    return _true_divide(_materialised(a, a_batched, axis_size), b), True
+
+
+@jax.custom_batching.custom_vmap
+def _true_divide(a, b):
+    return a / b
+
+
+@_true_divide.def_vmap
+def _true_divide_vmap(axis_size, in_batched, a, b):
+    a, b = jax.lax.optimization_barrier(tuple(_materialised(x, f, axis_size) for x, f in zip((a, b), in_batched)))
+    return _true_divide(a, b), True

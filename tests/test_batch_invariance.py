@@ -163,28 +163,47 @@ def test_rows_dot_gives_the_same_bits_in_every_batch():
 
 
 def test_the_critic_update_gives_the_same_bits_alone_and_in_a_batch():
-    """One R-STDP critic update (jaxarm.learning.stdp.dopamine_update through batching.when_any, as the rule runs it)
-    of one network alone equals its row in a batch of 8, for a reward and a punishment."""
+    """One R-STDP critic update (jaxarm.learning.stdp.dopamine_update through batching.when_any, as the rule runs it):
+    with bounds shared by the batch, a network alone, in a batch of one and in a batch of 8 give the same bits, those
+    of the soft bound's fraction as the bound's reciprocal times the gain (what XLA computed for a group of 8); with
+    each network's own bounds, batches of one and of 8 give those of the division (numpy float32 references)."""
     from jaxarm.batching import when_any
     from jaxarm.learning import stdp
 
     rng = np.random.default_rng(1)
     n = 29_672
     is_ee = rng.uniform(size=n) < 0.6
-    w = jnp.asarray(rng.uniform(0.2, 3.0, (8, n)).astype(np.float32))
-    tags = jnp.asarray(np.where(rng.uniform(size=(8, n)) < 0.3, 4990.0, -1e9).astype(np.float32))
-    bounds = (jnp.float32(3.2167358), jnp.float32(9.108501), jnp.float32(0.08971194))
+    w = rng.uniform(0.2, 3.0, (8, n)).astype(np.float32)
+    tags = np.where(rng.uniform(size=(8, n)) < 0.3, 4995.0, -1e9).astype(np.float32)
+    live = tags == np.float32(4995.0)      # tagged 5 ms before the update, within the 10 ms lifetime
+    ee, ei, rate = np.float32(3.2167358), np.float32(9.108501), np.float32(0.08971194)
 
-    def update(w, tags, signal, bounds):
+    def update(w, tags, signal, ee, ei):
         def reinforce(x, aux):
-            (w, tags), ((ee, ei, rate), signal) = x, aux
+            (w, tags), (ee, ei, signal) = x, aux
             return stdp.dopamine_update(w, tags, True, jnp.where(is_ee, ee, ei), rate, 5000.0, signal, 10.0)
 
-        return when_any(signal != 0, reinforce, (w, tags), (bounds, signal))[0]
+        return when_any(signal != 0, reinforce, (w, tags), (ee, ei, signal))[0]
 
-    batched = jax.jit(jax.vmap(update, in_axes=(0, 0, 0, None)))
-    alone = jax.jit(update)
+    maxw = np.where(is_ee, ee, ei).astype(np.float32)
+    one = np.float32(1.0)
     for signal in (1.0, -1.0):
-        together = np.asarray(batched(w, tags, jnp.full(8, signal, jnp.float32), bounds))
-        for i in range(8):
-            np.testing.assert_array_equal(np.asarray(alone(w[i], tags[i], jnp.float32(signal), bounds)), together[i])
+        def reference(fraction):
+            step = rate * (one - fraction) if signal > 0 else -rate * fraction
+            return np.where(live, np.maximum(w + step, np.float32(0.0)), w)
+
+        shared = reference(w * (one / maxw))
+        own = reference(w / maxw)
+        assert (shared != own).any()      # the two roundings differ somewhere: the test can tell them apart
+        s = jnp.full(8, signal, jnp.float32)
+        in_eight = jax.jit(jax.vmap(update, in_axes=(0, 0, 0, None, None)))(w, tags, s, ee, ei)
+        np.testing.assert_array_equal(np.asarray(in_eight), shared)
+        for i in (0, 5):
+            alone = jax.jit(update)(w[i], tags[i], jnp.float32(signal), ee, ei)
+            np.testing.assert_array_equal(np.asarray(alone), shared[i])
+            in_one = jax.jit(jax.vmap(update, in_axes=(0, 0, 0, None, None)))(w[i:i + 1], tags[i:i + 1], s[:1], ee, ei)
+            np.testing.assert_array_equal(np.asarray(in_one), shared[i:i + 1])
+        per = jax.jit(jax.vmap(update))
+        np.testing.assert_array_equal(np.asarray(per(w, tags, s, jnp.full(8, ee), jnp.full(8, ei))), own)
+        np.testing.assert_array_equal(np.asarray(per(w[2:3], tags[2:3], s[:1], jnp.full(1, ee), jnp.full(1, ei))),
+                                      own[2:3])

@@ -41,6 +41,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxarm.config.validate import ConfigError, check_range
+from jaxarm.cpu_arithmetic import divide
 
 #: ``pdope`` of an untagged synapse (the original's -1e9; exactly representable in float32).
 NO_TAG_MS = -1e9
@@ -99,9 +100,9 @@ def dopamine_update(wgain, pdope, plastic, maxw, inc, t_ms, signal, max_elig_tr_
     live = eligible(pdope, plastic, t_ms, max_elig_tr_dur_ms) & (signal != 0)
     potentiate = signal > 0
     if config.soft_bounds:
-        # wgain / maxw as a product with the reciprocal: XLA:CPU rewrites a division by a bound shared across a
-        # batch's networks so, and kept the division for a network alone (other bits in 5 % of the updated gains)
-        fraction = wgain * (1.0 / maxw)
+        # as a group of 8 computes it, in any group (cpu_arithmetic.divide): XLA:CPU turns a division by a bound
+        # the group shares into a product with its reciprocal (other bits in 5 % of the updated gains)
+        fraction = divide(wgain, maxw)
         step = jnp.where(potentiate, inc * (1.0 - fraction), -inc * fraction)
     else:
         step = jnp.where(potentiate, inc, -inc) * jnp.ones_like(wgain)
