@@ -18,7 +18,7 @@ SCRIPT = textwrap.dedent("""
     import json, tempfile
     import jax, numpy as np
     from jaxarm import parallel
-    parallel.start(devices=1)
+    parallel.start(devices=1, networks_at_once=8)   # one group of 8 (the default is one network at a time)
     from jaxarm.learning.metaparams import MetaParams
     from jaxarm.loop import LoopConfig
     from jaxarm.run import Batch, stack_rows
