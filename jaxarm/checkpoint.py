@@ -95,6 +95,19 @@ def _new_names(restored, like):
                         like, restored, is_leaf=_renamed)
 
 
+
+class _UnreadFutureErrors(logging.Filter):
+    """Drops asyncio's "... exception was never retrieved" records (a failed checkpoint's sibling writes)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "exception was never retrieved" not in str(record.msg)
+
+
+def _drop_unread_future_errors() -> None:
+    log = logging.getLogger("asyncio")
+    if not any(isinstance(f, _UnreadFutureErrors) for f in log.filters):
+        log.addFilter(_UnreadFutureErrors())
+
 class CheckpointWriteError(FolderError):
     """A checkpoint could not be written (:meth:`Checkpointer.save`); its message is one line (the commands print
     it as ``jaxarm COMMAND: ...`` and exit with status 2)."""
@@ -188,6 +201,9 @@ class Checkpointer:
                 failure = e
                 self._discard(int(step))     # held too: TensorStore's writes still failing print as they end
         if failure is not None:
+            # orbax's sibling writes of this step failed too; asyncio logs each unread one, with its traceback, when
+            # its future is collected (after this line, as the command exits): the same failure, already reported
+            _drop_unread_future_errors()
             raise CheckpointWriteError(self._write_failure(int(step), failure)) from failure
         held.replay()
         parallel.barrier(f"checkpoint-saved-{step}")
