@@ -20,6 +20,7 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import statistics
 import subprocess
 import sys
@@ -27,16 +28,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from arm import commit  # benchmarks/arm.py, beside this script: the commit, marked when the tree has changes
+
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def commit() -> str | None:
-    try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT,
-                             timeout=10)
-        return out.stdout.strip() or None
-    except (OSError, subprocess.SubprocessError):
-        return None
 
 
 def train_once(arm: str, k: int, args, folder: Path) -> tuple[float, list]:
@@ -48,7 +42,7 @@ def train_once(arm: str, k: int, args, folder: Path) -> tuple[float, list]:
     subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     res = json.loads((out / "results.json").read_text())
     rows = [res["networks"], res["naive"]]
-    subprocess.run(["rm", "-rf", str(out)], check=False)
+    shutil.rmtree(out, ignore_errors=True)
     return float(res["timing"]["network_s_per_s"]), rows
 
 

@@ -95,7 +95,6 @@ def _new_names(restored, like):
                         like, restored, is_leaf=_renamed)
 
 
-
 class _UnreadFutureErrors(logging.Filter):
     """Drops asyncio's "... exception was never retrieved" records (a failed checkpoint's sibling writes)."""
 
@@ -107,6 +106,7 @@ def _drop_unread_future_errors() -> None:
     log = logging.getLogger("asyncio")
     if not any(isinstance(f, _UnreadFutureErrors) for f in log.filters):
         log.addFilter(_UnreadFutureErrors())
+
 
 class CheckpointWriteError(FolderError):
     """A checkpoint could not be written (:meth:`Checkpointer.save`); its message is one line (the commands print

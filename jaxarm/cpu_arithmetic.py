@@ -115,6 +115,11 @@ def _rows_dot_jvp(primals, tangents):
     return _rows_dot(v, x), jnp.dot(dv, x) + jnp.dot(v, dx)
 
 
+def _materialised(x, batched, axis_size):
+    """``x`` with the batch axis a ``vmap`` rule gets it without (``batched`` False: the same in every row)."""
+    return x if batched else jnp.broadcast_to(x, (axis_size,) + x.shape)
+
+
 def _padded(rows):
     pad = -rows.shape[0] % DOT_ROW_GROUP
     return jnp.concatenate([rows, jnp.zeros((pad,) + rows.shape[1:], rows.dtype)]) if pad else rows
@@ -133,17 +138,17 @@ def _rows_product_vmap(axis_size, in_batched, v, rows):
     v_batched, rows_batched = in_batched
     if v_batched:
         raise ValueError("rows_dot: v must be the same in every network of a batch (vmap over x only)")
-    if not rows_batched:
-        rows = jnp.broadcast_to(rows, (axis_size,) + rows.shape)
+    rows = _materialised(rows, rows_batched, axis_size)
     a, b, n = rows.shape
     # this level's rows and the rows below as one batch (an outer vmap level flattens it again)
     return _rows_product(v, rows.reshape(a * b, n)).reshape(a, b), True
 
 
 def divide(a, b):
-    """``a / b`` elementwise (broadcast together) as XLA:CPU computes it for a group of networks, in every batch: a division
-    (one rounding) where the divisor is each network's own (batched under ``vmap``), a product with the divisor's
-    reciprocal (two roundings) where the group's networks share it (unbatched under ``vmap``) or there is no batch.
+    """``a / b`` elementwise (broadcast together) as XLA:CPU computes it for a group of networks, in every batch: a
+    division (one rounding) where the divisor is each network's own (batched under ``vmap``), a product with the
+    divisor's reciprocal (two roundings) where the group's networks share it (unbatched under ``vmap``) or there is
+    no batch.
 
     XLA:CPU rewrites a division by a broadcast divisor into that product, so a group of 8 with a shared
     metaparameter set computed the reciprocal's product and a group of one the division; this keeps what groups
@@ -163,10 +168,6 @@ def _divide_jvp(primals, tangents):
     (a, b), (da, db) = primals, tangents
     q = _divide(a, b)
     return q, (da - q * db) / b
-
-
-def _materialised(x, batched, axis_size):
-    return x if batched else jnp.broadcast_to(x, (axis_size,) + x.shape)
 
 
 @jax.custom_batching.custom_vmap

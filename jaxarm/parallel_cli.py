@@ -20,7 +20,7 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--networks-at-once", type=int, default=None, metavar="K",
                    help=f"networks each device steps together, the rest of its share after them (default: "
                         f"{CPU_NETWORKS_AT_ONCE} on CPUs, where one network stays in the caches; all on accelerators; "
-                        "0 = all); every value gives the same bits")
+                        "0 = all); every value gives the networks the same state")
     g.add_argument("--coordinator", default=None, metavar="HOST:PORT",
                    help="several processes (machines): process 0's address; give every process the same command with "
                         "its own --process-id (not needed under SLURM or Open MPI, which JAX detects)")
