@@ -4,7 +4,8 @@
 # BEFORE_DIR: a checkout of the commit to compare with (git worktree add /tmp/before COMMIT). Each round runs
 # benchmarks/network.py (1 and 64 networks, each tree's own script) and this tree's benchmarks/train.py (60
 # networks, both arms), one thread, on BEFORE_DIR, then on this tree, each with PYTHONPATH pointing at its own tree
-# and this tree's Python; both scripts run the networks in the commands' groups of 8. (A checkout whose
+# and this tree's Python; each side runs the networks as its own commands do by default (its
+# jaxarm.parallel.networks_at_once: one at a time on a CPU since 2026-12-07, groups of 8 before). (A checkout whose
 # network.py has no --networks-at-once times one vmap of all: copy this tree's network.py into it.)
 # Writes OUT_DIR/{net,train}-{before,now}-R.json and prints the medians over the rounds and their ratio now /
 # before (benchmarks/ab_summary.py, also written as OUT_DIR/summary.json).

@@ -4,9 +4,10 @@ Units: SI (m, s, rad, N) for the arm; ms and mV for neurons. Each boundary says 
 """
 __version__ = "0.1.0"
 
-from jaxarm import cpu_arithmetic
+from jaxarm import cpu_arithmetic, cpu_dispatch
 
 cpu_arithmetic.pin()   # before anything starts JAX's CPU backend: see jaxarm.cpu_arithmetic
+cpu_dispatch.unroll_threefry()   # the same random numbers in fewer XLA:CPU thunks: see jaxarm.cpu_dispatch
 
 from jaxarm.arm import make_arm  # noqa: E402
 

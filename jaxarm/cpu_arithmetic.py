@@ -71,16 +71,24 @@ def ordered_dot(x, y):
     """``x @ y`` summed in a fixed order: ``x[..., 0] y[0] + x[..., 1] y[1] + ...``, left to right, each product
     and sum rounded on its own, so every row of a batch gets the same bits whatever the batch's size.
 
-    ``x`` is (..., K) and ``y`` (K,) (a matrix-vector or vector-vector product: the result is ``x.shape[:-1]``) or
-    (K, M) (the result is ``x.shape[:-1] + (M,)``). For the small contractions of the arm (K at most a few tens),
-    not for large matrix products.
+    ``x`` is (..., K), or a list of K arrays of shape (...) (its columns one by one: nothing stacks them), and ``y``
+    (K,) (a matrix-vector or vector-vector product: the result is ``x.shape[:-1]``) or (K, M) (the result is
+    ``x.shape[:-1] + (M,)``). For the small contractions of the arm (K at most a few tens), not for large matrix
+    products.
     """
-    x, y = jnp.asarray(x), jnp.asarray(y)
-    if x.shape[-1] != y.shape[0] or y.ndim not in (1, 2):
-        raise ValueError(f"ordered_dot: shapes {x.shape} and {y.shape} do not contract (x (..., K), y (K,) or (K, M))")
+    columns = list(x) if isinstance(x, (list, tuple)) else None
+    y = jnp.asarray(y)
+    k_x = len(columns) if columns is not None else jnp.shape(x)[-1]
+    if k_x != y.shape[0] or y.ndim not in (1, 2):
+        shape = f"{k_x} columns" if columns is not None else str(jnp.shape(x))
+        raise ValueError(f"ordered_dot: shapes {shape} and {y.shape} do not contract (x (..., K), y (K,) or (K, M))")
+    if columns is None:
+        x = jnp.asarray(x)
+        columns = [x[..., k] for k in range(k_x)]
 
     def term(k):
-        return x[..., k, None] * y[k] if y.ndim == 2 else x[..., k] * y[k]
+        xk = jnp.asarray(columns[k])
+        return xk[..., None] * y[k] if y.ndim == 2 else xk * y[k]
 
     total = term(0)
     for k in range(1, y.shape[0]):

@@ -179,6 +179,10 @@ class FastGeometry:
         self.mass_coef = jnp.asarray(fit["mass_coef"], jnp.float32)       # (5, 3): M11, M12, M22
 
     def _monomials(self, q):
+        """The monomials of the normalised angles, as a list of K arrays of q's batch shape (the rows of
+        ``all_coef``, in order): :func:`ordered_dot` takes them one by one, so XLA fuses each power into the
+        products that use it (stacked into one array, the powers, their concatenation and its slices were a dozen
+        separate XLA:CPU thunks per arm step; a thunk's dispatch costs more than these few flops)."""
         # The barrier keeps x whole: for a batch of one, XLA's simplifier would otherwise fold the scale into each
         # power's constant (x^k = (q - c)^k (1/h)^k), other bits than in a batch of several.
         x = jax.lax.optimization_barrier((jnp.asarray(q, float) - self.q_center) / self.q_halfwidth)
@@ -186,13 +190,9 @@ class FastGeometry:
         rows = [jnp.ones_like(x)]
         for _ in range(self.degree):
             rows.append(rows[-1] * x)
-        powers = jnp.stack(rows)
         if self.separable:
-            return jnp.concatenate([powers[:, 0], powers[1:, 1]])
-        return powers[self.exponents[:, 0], 0] * powers[self.exponents[:, 1], 1]
-
-    def mtu_lengths(self, q):
-        return ordered_dot(self._monomials(q), self.all_coef[:, : self.n_muscles])
+            return [r[..., 0] for r in rows] + [r[..., 1] for r in rows[1:]]
+        return [rows[i][..., 0] * rows[j][..., 1] for i, j in np.asarray(self.exponents)]
 
     def mass_matrix(self, q2):
         c, s = jnp.cos(q2), jnp.sin(q2)
