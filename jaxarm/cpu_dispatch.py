@@ -1,17 +1,28 @@
-"""Fewer XLA:CPU thunks per 10 ms interval: JAX's threefry hash as straight-line code.
+"""How XLA:CPU runs jaxarm's small programs: fewer thunks, and no idle threads beside the devices' own.
 
 XLA:CPU runs a compiled program as a sequence of thunks (one per fusion, copy, loop iteration, custom call), each
-with a fixed dispatch cost. A closed-loop interval of one network is small, so that cost shows: JAX lowers its
-threefry hash (every ``jax.random`` draw: the interval's key splits and babbling draws) on CPU as a loop over its 5
-rounds, and each iteration runs a dozen thunks (its copies and fusions), about 270 of a simple-arm interval's 316.
-Unrolled, as JAX lowers it on every other platform, the same integer operations in the same order fuse into a few
-thunks: the same numbers (``tests/test_cpu_dispatch.py``: Random123's known answers, and JAX's rolled lowering in
-a second process) and the same training bits. ``benchmarks/thunks.py`` counts an interval's thunks both ways.
+with a fixed dispatch cost, and keeps a pool of threads for the work it spreads. A closed-loop interval of one
+network is small, so both show:
 
-:func:`unroll_threefry` registers the unrolled lowering for CPU (``import jaxarm`` calls it). It changes how JAX
-compiles every threefry draw on CPU in this process, also outside jaxarm: the same numbers, fewer thunks, more
-operations to compile (JAX rolls the loop on CPU to keep compile times short; jaxarm's epochs compile no slower,
-``benchmarks/train.py`` reports their compile times). ``JAXARM_ROLLED_THREEFRY=1`` keeps JAX's rolled loop.
+* **Threefry unrolled.** JAX lowers its threefry hash (every ``jax.random`` draw: the interval's key splits and
+  babbling draws) on CPU as a loop over its 5 rounds, and each iteration runs a dozen thunks (its copies and
+  fusions), about 270 of a simple-arm interval's 316. Unrolled, as JAX lowers it on every other platform, the same
+  integer operations in the same order fuse into a few thunks: the same numbers (``tests/test_cpu_dispatch.py``:
+  Random123's known answers, and JAX's rolled lowering in a second process) and the same training bits.
+  ``benchmarks/thunks.py`` counts an interval's thunks both ways. :func:`unroll_threefry` registers the unrolled
+  lowering for CPU (``import jaxarm`` calls it): it changes how JAX compiles every threefry draw on CPU in this
+  process, also outside jaxarm (the same numbers, fewer thunks, more operations to compile: JAX rolls the loop on
+  CPU to keep compile times short; jaxarm's epochs compile no slower, ``benchmarks/train.py`` reports their compile
+  times). ``JAXARM_ROLLED_THREEFRY=1`` keeps JAX's rolled loop.
+* **One pool thread per device.** XLA:CPU's pool has a thread per core by default. jaxarm's programs have nothing
+  to spread (each device runs its networks one at a time; the network kernel has threads of its own,
+  ``NetworkConfig.native_threads``), and the pool's threads woke and spun on the other cores at every hand-off: one
+  device on a 2-core machine ran the network alone 1.06-1.24x and the closed loop 1.3x as fast with a pool of one
+  thread, on one core instead of 1.3 (``benchmarks/pool_threads.py``, ``docs/results/pool_threads.json``); with
+  a device on every core both sizes are the same. :func:`pool_threads` sets the pool to one
+  thread per device of this process (``import jaxarm``: one; :func:`jaxarm.parallel.start`: its device count)
+  through ``PJRT_NPROC``, which XLA reads when its CPU backend starts; a ``PJRT_NPROC`` or ``NPROC`` of the user's
+  own is kept.
 """
 from __future__ import annotations
 
@@ -47,4 +58,23 @@ def unroll_threefry() -> bool:
     mlir.register_lowering(primitive, mlir.lower_fun(partial(lowering, use_rolled_loops=False),
                                                      multiple_results=True), platform="cpu")
     _registered = True
+    return True
+
+
+#: The environment variables XLA:CPU sizes its thread pool from (the first one set wins).
+POOL_ENV = ("PJRT_NPROC", "NPROC")
+_pool_set_here = False
+
+
+def pool_threads(threads: int) -> bool:
+    """Size XLA:CPU's thread pool to ``threads`` (one per device of this process) unless the user set
+    ``PJRT_NPROC`` or ``NPROC``. Read when JAX's CPU backend starts: a later call changes nothing. Returns whether
+    jaxarm sets the size."""
+    global _pool_set_here
+    if threads < 1:
+        raise ValueError(f"pool_threads: threads = {threads}: must be >= 1")
+    if any(name in os.environ for name in POOL_ENV) and not _pool_set_here:
+        return False
+    os.environ[POOL_ENV[0]] = str(threads)
+    _pool_set_here = True
     return True

@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import AxisType, Mesh, NamedSharding, PartitionSpec
 
+from jaxarm import cpu_dispatch
 from jaxarm.config.validate import ConfigError
 
 #: The mesh axis the batch is split along.
@@ -302,6 +303,7 @@ def start(devices: int | None = None, coordinator: str | None = None, num_proces
     _started = True
     _relax_collective_waits()      # read by XLA when the backend starts, just below
     jax.config.update("jax_num_cpu_devices", devices or usable_cores())
+    cpu_dispatch.pool_threads(devices or usable_cores())   # likewise: one XLA:CPU pool thread per device
     distributed = all(explicit) and num_processes > 1
     if distributed or _cluster_detected() or os.environ.get("JAX_COORDINATOR_ADDRESS"):
         jax.config.update("jax_cpu_collectives_implementation", "gloo")
@@ -355,7 +357,7 @@ def padding_note(n: int, what: str, devices: int, at_once: int, processes: int =
     where += f" of {processes} processes" if processes > 1 else ""
     where += (" one network at a time" if at_once == 1 else f" in groups of {at_once}") if at_once else ""
     if padded == n:
-        return f"{what}: {where}, whole groups (no padding)"
+        return f"{what}: {where}, " + ("whole groups (no padding)" if at_once > 1 else "no padding")
     text = (f"{what}: {where}, padded to {padded}: {100 * (padded - n) / padded:.3g} % of what runs is padding "
             "(computed and dropped)")
     if fill is not None:

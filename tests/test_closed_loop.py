@@ -115,7 +115,7 @@ def test_train_cli_writes_results(tmp_path, capsys):
     assert hist["rates_last10s_hz"].shape == (1, 2, 6) and hist["rewards"].shape == (1, 2)
     assert (out / "reach.png").stat().st_size > 0
     # the layout line (jaxarm.parallel.padding_note; with the progress bar): 2 networks on 2 devices, one at a time
-    assert "2 networks: on 2 devices one network at a time, whole groups (no padding)" in capsys.readouterr().err
+    assert "2 networks: on 2 devices one network at a time, no padding" in capsys.readouterr().err
     # re-test the trained networks with another readout gain: same weights, other metaparameter
     assert main(["test", "--from", str(out), "--set", "v_em_max=30", "--out", str(tmp_path / "t30")]) == 0
     t30 = json.loads((tmp_path / "t30" / "results.json").read_text())

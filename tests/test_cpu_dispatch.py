@@ -1,8 +1,9 @@
 """jaxarm.cpu_dispatch: JAX's threefry hash lowered as straight-line code on CPU gives the same numbers, in fewer
-XLA:CPU thunks.
+XLA:CPU thunks; XLA's CPU pool has one thread per device.
 
 References: the Random123 known-answer vectors of threefry2x32 (20 rounds), and JAX's own rolled lowering in a
-second process (``JAXARM_ROLLED_THREEFRY=1``), whose compiled program is the positive control (it has the loop).
+second process (``JAXARM_ROLLED_THREEFRY=1``), whose compiled program is the positive control (it has the loop);
+the pool's threads counted by name in fresh processes.
 """
 import json
 import os
@@ -12,6 +13,7 @@ import sys
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxarm  # noqa: F401  (registers the unrolled lowering)
 from jaxarm import cpu_dispatch
@@ -74,3 +76,38 @@ def test_ordered_dot_takes_its_columns_as_a_list():
     stacked = np.asarray(jax.jit(ordered_dot)(x, y))
     columns = np.asarray(jax.jit(lambda x, y: ordered_dot([x[:, k] for k in range(19)], y))(x, y))
     np.testing.assert_array_equal(columns, stacked)
+
+
+POOL = """
+import collections, os, sys
+import jaxarm
+from jaxarm import parallel
+if sys.argv[1] != "import":
+    parallel.start(devices=int(sys.argv[1]))
+import jax.numpy as jnp
+jnp.zeros(3).block_until_ready()
+names = [open(f"/proc/self/task/{t}/comm").read().strip() for t in os.listdir("/proc/self/task")]
+print(collections.Counter(names)["tf_XLAEigen"])
+"""
+
+
+def _pool_threads(how: str, **env_extra) -> int:
+    env = {k: v for k, v in os.environ.items() if k not in cpu_dispatch.POOL_ENV} | env_extra
+    run = subprocess.run([sys.executable, "-c", POOL, how], capture_output=True, text=True, env=env, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return int(run.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts XLA's pool threads by name in /proc (Linux)")
+def test_xla_pool_has_one_thread_per_device_unless_the_user_sized_it():
+    """XLA names its CPU pool's threads tf_XLAEigen; by default it starts one per core (positive control: the
+    user's PJRT_NPROC=3 gives 3 on any machine)."""
+    assert _pool_threads("import") == 1
+    assert _pool_threads("2") == 2
+    assert _pool_threads("2", PJRT_NPROC="3") == 3
+    assert _pool_threads("import", NPROC="3") == 3
+
+
+def test_pool_threads_rejects_a_size_below_one():
+    with pytest.raises(ValueError, match="threads = 0: must be >= 1"):
+        cpu_dispatch.pool_threads(0)

@@ -489,7 +489,7 @@ def test_cli_runs_resumes_and_reports_errors(tmp_path, capsys):
     assert "re-evaluated the top" in out
     # the layout line: 6 candidates x 2 seeds on the suite's 2 devices, one network at a time (padding_note)
     assert ("jaxarm evolve: a generation's 12 evaluations (6 candidates x 2 seed(s)): on 2 devices one network at a "
-            "time, whole groups (no padding)") in out
+            "time, no padding") in out
     top = json.loads((tmp_path / "run" / TOP_K_FILE).read_text())
     assert 1 <= len(top["top_k"]) <= 5 and top["reevaluated"]
     first = top["top_k"][0]["metaparams"]

@@ -315,8 +315,8 @@ def test_a_padded_batch_says_how_much_is_padding_and_what_fills_it():
     assert search(5, 1, two) == ("a generation's 5 evaluations (5 candidates x 1 seed(s)): on 2 devices one network "
                                  "at a time, padded to 6: 16.7 % of what runs is padding (computed and dropped); "
                                  "--population 6 fills the groups (6 evaluations)")
-    assert search(5, 2, two).endswith("on 2 devices one network at a time, whole groups (no padding)")
-    assert search(3, 3, one).endswith("on 1 device one network at a time, whole groups (no padding)")
+    assert search(5, 2, two).endswith("on 2 devices one network at a time, no padding")
+    assert search(3, 3, one).endswith("on 1 device one network at a time, no padding")
     with parallel_groups(8):
         assert search(5, 2, two) == ("a generation's 10 evaluations (5 candidates x 2 seed(s)): on 2 devices in "
                                      "groups of 8, padded to 16: 37.5 % of what runs is padding (computed and "
@@ -332,7 +332,7 @@ def test_a_padded_batch_says_how_much_is_padding_and_what_fills_it():
     what = "jaxarm evolve: a generation's 200 evaluations (100 candidates x 2 seed(s))"
     printed = parallel.padding_note(200, what, 256, 1, 8, ("--population", lambda p: 2 * p, 100), unit="evaluations")
     assert printed in _docs_text("scaling.md")
-    assert parallel.padding_note(2048, "g", 256, 1, 8).endswith("whole groups (no padding)")
+    assert parallel.padding_note(2048, "g", 256, 1, 8).endswith("one network at a time, no padding")
     assert parallel.padding_note(10, "g", 4, 0) == "g: on 4 devices, padded to 12: 16.7 % of what runs is padding " \
                                                   "(computed and dropped); a batch of 12 networks (a multiple of 4) " \
                                                   "fills the groups"
