@@ -14,7 +14,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "jaxarm"
 #: Bottom to top. An entry names a module, or a package and every module under it; the longest entry that names a
 #: module places it. A module may import from its own layer and the layers below, never from one above.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("foundation", ("jaxarm.config.validate", "jaxarm.cpu_arithmetic", "jaxarm.batching")),
+    ("foundation", ("jaxarm.config.validate", "jaxarm.cpu_arithmetic", "jaxarm.cpu_dispatch", "jaxarm.batching")),
     ("configuration", ("jaxarm.config",)),
     ("devices and folders", ("jaxarm.parallel", "jaxarm.parallel_cli", "jaxarm.runfolder")),
     ("network, arm, task, analysis", ("jaxarm", "jaxarm.network", "jaxarm.arm", "jaxarm.task", "jaxarm.analysis",
