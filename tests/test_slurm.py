@@ -114,4 +114,4 @@ def test_the_recipe_under_a_real_slurm_gives_the_bits_of_one_process(tmp_path):
     assert record["identical"] and record["slurm"]["job_status"] == 0
     assert any(k.startswith("checkpoint") and k.endswith("state") for k in record["comparison"])
     # the job's processes met through SLURM's environment: 2 processes of 1 device, 8 x 2 evaluations, no padding
-    assert "on 2 devices of 2 processes one network at a time, whole groups" in record["slurm"]["log_text"]
+    assert "on 2 devices of 2 processes one network at a time, no padding" in record["slurm"]["log_text"]
