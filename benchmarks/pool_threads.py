@@ -42,10 +42,15 @@ def usable_cores() -> int:
     return cores()
 
 
-def run_json(cmd: list[str], threads: int) -> dict:
+def pool_env(threads: int) -> dict:
+    """This process's environment with XLA's CPU pool sized to ``threads`` (``NPROC`` dropped: it would win)."""
     env = dict(os.environ, PJRT_NPROC=str(threads))
     env.pop("NPROC", None)
-    out = subprocess.run(cmd, check=True, cwd=ROOT, env=env, capture_output=True, text=True).stdout
+    return env
+
+
+def run_json(cmd: list[str], threads: int) -> dict:
+    out = subprocess.run(cmd, check=True, cwd=ROOT, env=pool_env(threads), capture_output=True, text=True).stdout
     return json.loads(out[out.index("{"):])     # the script's JSON, after any lines it printed before
 
 
@@ -61,11 +66,9 @@ def one_round(threads: int, folder: Path) -> dict:
                 for arm in ("simple", "musculoskeletal")}
     for arm in ("simple", "musculoskeletal"):
         out = folder / f"{arm}-{threads}"
-        env = dict(os.environ, PJRT_NPROC=str(threads))
-        env.pop("NPROC", None)
         subprocess.run([str(Path(py).with_name("jaxarm")), "train", "--arm", arm, "--target", "left", "--networks",
                         "16", "--epochs", "1", "--epoch-s", "15", "--no-progress", "--out", str(out)], check=True,
-                       cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                       cwd=ROOT, env=pool_env(threads), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         res = json.loads((out / "results.json").read_text())
         figures[f"jaxarm train {arm} 16 every core"] = res["timing"]["network_s_per_s"]
         shutil.rmtree(out, ignore_errors=True)
