@@ -2,12 +2,14 @@
 
     python benchmarks/arm.py --json [--batches 1 60 300] [--steps 1000] [--repeats 5]
         [--integrators linearly_implicit backward_euler] [--newton-iterations 3] [--backends fast mjx]
-        [--json-out FILE]
+        [--threads N] [--json-out FILE]
 
 One arm-step = 1 ms of one arm. Each measurement jits ``vmap`` over arms of a ``lax.scan`` over ``--steps`` steps
 (``--mjx-steps`` for MJX) with random excitations (seed 0). Every (integrator, backend, batch) is compiled first;
 then ``--repeats`` rounds time each of them once, in turn, so that load from other work on the machine falls on all
 of them alike; each rate is the median over the rounds. Compile time is the first call minus the median run.
+Each batch runs as one program on one device, which XLA:CPU's thread pool spreads over ``--threads`` cores (default:
+every usable core; ``import jaxarm`` alone would leave it one thread, a device's worth since 2026-12-07).
 
 Reported as JSON: ``{"fast": {"1": steps_per_s, ...}, "mjx": {...}}`` for the default integrator (wall clock, as
 before), and per integrator ``integrators[name][backend][batch]`` with ``arm_steps_per_wall_s`` and
@@ -89,8 +91,17 @@ def main(argv=None) -> int:
     ap.add_argument("--newton-iterations", type=int, default=MusculoskeletalArmConfig().muscle_newton_iterations,
                     help="MusculoskeletalArmConfig.muscle_newton_iterations of the backward_euler integrator")
     ap.add_argument("--json-out", help="also write the JSON to this file")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="XLA:CPU's thread pool, which splits a batch of arms over cores (default: every usable core)")
     args = ap.parse_args(argv)
-    from jaxarm import make_arm
+    from jaxarm import cpu_dispatch, make_arm
+    from jaxarm.parallel import usable_cores
+
+    # one jit over a batch on one device: XLA's pool is what spreads it over the cores (import jaxarm sizes the
+    # pool to one thread, one device's worth; set before JAX's CPU backend starts)
+    args.threads = args.threads or usable_cores()
+    if not cpu_dispatch.pool_threads(args.threads):
+        args.threads = f"the user's PJRT_NPROC / NPROC: {os.environ.get('PJRT_NPROC', os.environ.get('NPROC'))}"
 
     integrators = [default] + [i for i in args.integrators if i != default]
     result = {"compile_s": {}, "config": vars(args) | {

@@ -63,18 +63,27 @@ def unroll_threefry() -> bool:
 
 #: The environment variables XLA:CPU sizes its thread pool from (the first one set wins).
 POOL_ENV = ("PJRT_NPROC", "NPROC")
-_pool_set_here = False
+#: The value jaxarm wrote into ``PJRT_NPROC``, so that a process started from this one (which inherits both) can
+#: tell jaxarm's size from the user's own and set its own device count.
+POOL_SET_BY_JAXARM_ENV = "JAXARM_SET_PJRT_NPROC"
+
+
+def _pool_set_by_jaxarm() -> bool:
+    """Whether the pool size in the environment is jaxarm's (this process's or a parent's), not the user's."""
+    if "NPROC" in os.environ and POOL_ENV[0] not in os.environ:
+        return False
+    marker = os.environ.get(POOL_SET_BY_JAXARM_ENV)
+    return marker is not None and marker == os.environ.get(POOL_ENV[0])
 
 
 def pool_threads(threads: int) -> bool:
     """Size XLA:CPU's thread pool to ``threads`` (one per device of this process) unless the user set
     ``PJRT_NPROC`` or ``NPROC``. Read when JAX's CPU backend starts: a later call changes nothing. Returns whether
-    jaxarm sets the size."""
-    global _pool_set_here
+    jaxarm sets the size. A size that jaxarm set (here or in the process that started this one: both variables are
+    inherited) is not the user's and is set again."""
     if threads < 1:
         raise ValueError(f"pool_threads: threads = {threads}: must be >= 1")
-    if any(name in os.environ for name in POOL_ENV) and not _pool_set_here:
+    if any(name in os.environ for name in POOL_ENV) and not _pool_set_by_jaxarm():
         return False
-    os.environ[POOL_ENV[0]] = str(threads)
-    _pool_set_here = True
+    os.environ[POOL_ENV[0]] = os.environ[POOL_SET_BY_JAXARM_ENV] = str(threads)
     return True

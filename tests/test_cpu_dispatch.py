@@ -92,7 +92,8 @@ print(collections.Counter(names)["tf_XLAEigen"])
 
 
 def _pool_threads(how: str, **env_extra) -> int:
-    env = {k: v for k, v in os.environ.items() if k not in cpu_dispatch.POOL_ENV} | env_extra
+    ours = (*cpu_dispatch.POOL_ENV, cpu_dispatch.POOL_SET_BY_JAXARM_ENV)
+    env = {k: v for k, v in os.environ.items() if k not in ours} | env_extra
     run = subprocess.run([sys.executable, "-c", POOL, how], capture_output=True, text=True, env=env, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
     return int(run.stdout.strip().splitlines()[-1])
@@ -106,6 +107,10 @@ def test_xla_pool_has_one_thread_per_device_unless_the_user_sized_it():
     assert _pool_threads("2") == 2
     assert _pool_threads("2", PJRT_NPROC="3") == 3
     assert _pool_threads("import", NPROC="3") == 3
+    # started from a process that imported jaxarm (it inherits jaxarm's size and its marker): its own device count
+    assert _pool_threads("2", PJRT_NPROC="1", JAXARM_SET_PJRT_NPROC="1") == 2
+    # the user changed the inherited size: theirs
+    assert _pool_threads("2", PJRT_NPROC="3", JAXARM_SET_PJRT_NPROC="1") == 3
 
 
 def test_pool_threads_rejects_a_size_below_one():
