@@ -16,9 +16,9 @@ mkdir -p "$out"
 for r in $(seq 1 "$rounds"); do
   for side in before now; do
     if [ $side = before ]; then dir=$before; else dir=$now; fi
-    (cd "$dir" && PYTHONPATH=$dir "$py" benchmarks/network.py --networks 1,64 --repeats 3 --no-brian2 --threads 1 \
+    (cd "$dir" && PYTHONPATH=$dir "$py" benchmarks/network.py --networks 1,64 --seconds 10 --repeats 3 --no-brian2 --threads 1 \
         --json > "$out/net-$side-$r.json")
-    (cd "$dir" && PYTHONPATH=$dir "$py" "$now/benchmarks/train.py" --networks 60 --seconds 2 --repeats 3 --threads 1 \
+    (cd "$dir" && PYTHONPATH=$dir "$py" "$now/benchmarks/train.py" --networks 60 --seconds 10 --repeats 3 --threads 1 \
         --json > "$out/train-$side-$r.json")
     echo "$side round $r done $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"
   done

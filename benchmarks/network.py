@@ -41,7 +41,12 @@ import time
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-DEFAULT_SECONDS = {1: 2.0, 60: 1.0, 300: 0.5}
+#: Simulated seconds of each timed run, at every network count: the run length of the Brian2 comparison, and a
+#: third of a training epoch. Each call of a map over networks copies every network's wiring and state in and out
+#: (about 2.3 ms per network per call on this project's 2-core machine, 2026-12-08: 64 networks ran 86.5 network-s/s
+#: in 1 s runs and 106 in 10 s runs), which training pays once per 30 s epoch; until 2026-12-08 the runs were 2 / 1 /
+#: 0.5 s at 1 / 60 / 300 networks, and at 60 and 300 networks the figures were largely that copy.
+DEFAULT_SECONDS = 10.0
 
 
 def worker(n_networks: int, dt_ms: float | None, seconds: float, repeats: int, seed: int, warmup: float,
@@ -135,7 +140,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--networks", default="1,60,300", help="comma-separated network counts")
     ap.add_argument("--dt", type=float, default=None, help="clock step, ms (default: NetworkConfig's)")
-    ap.add_argument("--seconds", type=float, default=None, help="simulated seconds per timed run (default by size)")
+    ap.add_argument("--seconds", type=float, default=None,
+                    help=f"simulated seconds per timed run (default {DEFAULT_SECONDS:g} at every network count)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--warmup", type=float, default=1.0, help="untimed simulated seconds before timing")
     ap.add_argument("--seed", type=int, default=0)
@@ -156,7 +162,7 @@ def main(argv=None) -> int:
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker is not None:
-        seconds = args.seconds or DEFAULT_SECONDS.get(args.worker, 1.0)
+        seconds = args.seconds or DEFAULT_SECONDS
         print(json.dumps(worker(args.worker, args.dt, seconds, args.repeats, args.seed, args.warmup, args.kernel,
                                 args.threads, args.networks_at_once, args.same_step_inhibition)))
         return 0

@@ -1,11 +1,13 @@
 """Closed-loop training throughput: network + arm + plasticity, in network-seconds simulated per wall-second.
 
-    python benchmarks/train.py --json [--networks 60] [--arm simple] [--seconds 2] [--repeats 3] [--record-s S]
+    python benchmarks/train.py --json [--networks 60] [--arm simple] [--seconds 10] [--repeats 3] [--record-s S]
 
 Each measurement compiles one training epoch of ``--seconds`` simulated seconds (original metaparameters, babbling,
 R-STDP on) over ``--networks`` networks (keys 0..N-1), in groups of ``--networks-at-once`` one after the other as
 the commands run them on one device (default: theirs, 1 on a CPU since 2026-12-07, 8 before; 0: one vmap of all), runs it ``--repeats`` times
-and reports the median.
+and reports the median. Each call copies every network's wiring and state in and out once (about 2.3 ms per network
+on this project's 2-core machine: ``benchmarks/network.py``'s ``DEFAULT_SECONDS``), which training pays once per 30 s
+epoch: 10 s epochs keep it below 3 % (2 s until 2026-12-08).
 With ``--record-s S`` the epoch records every cell's spikes over its last S seconds (``jaxarm.record``,
 ``jaxarm train --record-train-s``): the cost of recording. Prints JSON: {"network_s_per_s": {"60": ...}, "compile_s": {...}, "config": {...}}.
 """
@@ -55,7 +57,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--networks", type=int, nargs="+", default=[60])
     ap.add_argument("--arm", nargs="+", default=["simple", "musculoskeletal"], choices=["simple", "musculoskeletal"])
-    ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--seconds", type=float, default=10.0)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--kernel", default="auto", choices=["auto", "native", "xla"], help="NetworkConfig.kernel")
     ap.add_argument("--threads", type=int, default=None,
