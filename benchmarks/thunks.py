@@ -85,10 +85,10 @@ def interval_thunks(arm: str) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json-out", default=None)
-    ap.add_argument("--worker", nargs=2, metavar=("ARM", "LOWERING"), help=argparse.SUPPRESS)
+    ap.add_argument("--worker", metavar="ARM", help=argparse.SUPPRESS)   # the lowering comes from the environment
     args = ap.parse_args(argv)
     if args.worker:
-        print(json.dumps(interval_thunks(args.worker[0])))
+        print(json.dumps(interval_thunks(args.worker)))
         return 0
     import jax
 
@@ -100,7 +100,7 @@ def main(argv=None) -> int:
     for arm in ("simple", "musculoskeletal"):
         for lowering, rolled in (("jax_rolled_threefry", "1"), ("jaxarm_unrolled_threefry", "0")):
             env = dict(os.environ, JAXARM_ROLLED_THREEFRY=rolled)
-            run = subprocess.run([sys.executable, __file__, "--worker", arm, lowering], env=env, capture_output=True,
+            run = subprocess.run([sys.executable, __file__, "--worker", arm], env=env, capture_output=True,
                                  text=True, check=True)
             result = json.loads(run.stdout.strip().splitlines()[-1])
             out["thunks_per_interval"].setdefault(arm, {})[lowering] = result
