@@ -100,8 +100,9 @@ def main(argv=None) -> int:
     # one jit over a batch on one device: XLA's pool is what spreads it over the cores (import jaxarm sizes the
     # pool to one thread, one device's worth; set before JAX's CPU backend starts)
     args.threads = args.threads or usable_cores()
-    if not cpu_dispatch.pool_threads(args.threads):
-        args.threads = f"the user's PJRT_NPROC / NPROC: {os.environ.get('PJRT_NPROC', os.environ.get('NPROC'))}"
+    if not cpu_dispatch.pool_threads(args.threads):   # the user's own size wins: recorded as theirs
+        args.threads = None
+        args.pool_from_user_env = os.environ.get("PJRT_NPROC", os.environ.get("NPROC"))
 
     integrators = [default] + [i for i in args.integrators if i != default]
     result = {"compile_s": {}, "config": vars(args) | {

@@ -69,9 +69,8 @@ POOL_SET_BY_JAXARM_ENV = "JAXARM_SET_PJRT_NPROC"
 
 
 def _pool_set_by_jaxarm() -> bool:
-    """Whether the pool size in the environment is jaxarm's (this process's or a parent's), not the user's."""
-    if "NPROC" in os.environ and POOL_ENV[0] not in os.environ:
-        return False
+    """Whether the pool size in the environment is jaxarm's (this process's or a parent's), not the user's: jaxarm's
+    marker equals ``PJRT_NPROC`` (a user's ``NPROC`` alone, or a changed ``PJRT_NPROC``, leaves them apart)."""
     marker = os.environ.get(POOL_SET_BY_JAXARM_ENV)
     return marker is not None and marker == os.environ.get(POOL_ENV[0])
 
